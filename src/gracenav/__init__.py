@@ -13,7 +13,7 @@ import os
 # on small machines; respect a user's explicit choice.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from gracenav.errors import (  # noqa: E402
+from gracenav.errors import (
     CacheError,
     ConfigError,
     GracenavError,
@@ -21,7 +21,7 @@ from gracenav.errors import (  # noqa: E402
     PlanningError,
     VerificationError,
 )
-from gracenav.params import BallbotParams  # noqa: E402
+from gracenav.params import BallbotParams
 
 __version__ = "0.1.0"
 

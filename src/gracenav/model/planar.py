@@ -120,7 +120,9 @@ class PlanarBallbot:
             Input matrix for the torque τ.
         """
         m0 = self.mass_matrix(np.zeros(2))
-        dg = np.array([[0.0, 0.0], [0.0, -self.beta * self.params.gravity / self.params.ball_radius]])
+        dg = np.array(
+            [[0.0, 0.0], [0.0, -self.beta * self.params.gravity / self.params.ball_radius]]
+        )
         dd = np.zeros((2, 2))
         if viscous:
             dd[0, 0] = self.params.viscous_friction

@@ -1,0 +1,294 @@
+"""Compiled (numba) kernels: 3D dynamics, the Fig. 2 control law and the closed loop.
+
+Everything here works on plain float64 arrays so that one compiled loop can
+run a single closed-loop simulation or a batch of them; the public, typed
+interface is :mod:`gracenav.simulate` and :mod:`gracenav.model`.
+
+Array conventions: state x = [θ_x, θ_y, φ_x, φ_y, θ̇_x, θ̇_y, φ̇_x, φ̇_y];
+model constants ``c`` as ``Ballbot3D.constants()``; friction constants
+``fr = [D_c, D_v, ε]``; controller gains ``k`` (2, 4) with rows
+[k_p, k_v, k_φ, k_φ̇] per plane (see :class:`gracenav.control.ControllerGains`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from gracenav.model import _ballbot3d_generated as _gen
+
+__all__ = [
+    "closed_loop",
+    "control_law",
+    "dynamics",
+    "mass_matrix",
+]
+
+mass_matrix = njit(cache=True)(_gen.mass_matrix)
+bias = njit(cache=True)(_gen.bias)
+com_jacobian = njit(cache=True)(_gen.com_jacobian)
+com_position = njit(cache=True)(_gen.com_position)
+
+
+@njit(cache=True)
+def friction(fr, thd):  # type: ignore[no-untyped-def]
+    """Smooth friction torque D_c tanh(θ̇/ε) + D_v θ̇ (N m)."""
+    return fr[0] * np.tanh(thd / fr[2]) + fr[1] * thd
+
+
+@njit(cache=True)
+def solve_spd(m, b, out):  # type: ignore[no-untyped-def]
+    """Solve m @ out = b for a small symmetric positive definite m (Cholesky, in place)."""
+    n = b.shape[0]
+    for j in range(n):
+        s = m[j, j]
+        for k in range(j):
+            s -= m[j, k] * m[j, k]
+        m[j, j] = np.sqrt(s)
+        for i in range(j + 1, n):
+            s = m[i, j]
+            for k in range(j):
+                s -= m[i, k] * m[j, k]
+            m[i, j] = s / m[j, j]
+    for i in range(n):
+        s = b[i]
+        for k in range(i):
+            s -= m[i, k] * out[k]
+        out[i] = s / m[i, i]
+    for i in range(n - 1, -1, -1):
+        s = out[i]
+        for k in range(i + 1, n):
+            s -= m[k, i] * out[k]
+        out[i] = s / m[i, i]
+
+
+@njit(cache=True)
+def dynamics(c, fr, x, tau, force, wm, wh, wj, wr, xdot):  # type: ignore[no-untyped-def]
+    """State derivative of the 3D model with drive torque ``tau`` (2,) and a world force
+    ``force`` (3,) on the body centre of mass. ``wm`` (4,4), ``wh`` (4,), ``wj`` (3,4),
+    ``wr`` (4,) are workspaces; the result is written to ``xdot`` (8,)."""
+    q = x[:4]
+    qd = x[4:]
+    mass_matrix(c, q, wm)
+    bias(c, q, qd, wh)
+    com_jacobian(c, q, wj)
+    for i in range(4):
+        wr[i] = -wh[i] + wj[0, i] * force[0] + wj[1, i] * force[1] + wj[2, i] * force[2]
+    wr[0] += tau[0] - friction(fr, qd[0])
+    wr[1] += tau[1] - friction(fr, qd[1])
+    for i in range(4):
+        xdot[i] = qd[i]
+    solve_spd(wm, wr, xdot[4:])
+
+
+@njit(cache=True)
+def control_law(r, fr, k, max_comp, friction_comp, x, meas_noise, x_ref, tau_ff, out):  # type: ignore[no-untyped-def]
+    """Fig. 2 cascade for both planes; writes the (unsaturated) torque to ``out`` (2,).
+
+    ``meas_noise`` (4,) is added to the measured [p_x, p_y, ṗ_x, ṗ_y]."""
+    for i in range(2):
+        p = r * (x[i] + x[2 + i]) + meas_noise[i]
+        v = r * (x[4 + i] + x[6 + i]) + meas_noise[2 + i]
+        p_ref = r * (x_ref[i] + x_ref[2 + i])
+        v_ref = r * (x_ref[4 + i] + x_ref[6 + i])
+        comp = k[i, 0] * (p_ref - p) + k[i, 1] * (v_ref - v)
+        if comp > max_comp:
+            comp = max_comp
+        elif comp < -max_comp:
+            comp = -max_comp
+        lean_des = x_ref[2 + i] + comp
+        tau = tau_ff[i] - k[i, 2] * (x[2 + i] - lean_des) - k[i, 3] * (x[6 + i] - x_ref[6 + i])
+        if friction_comp:
+            tau += friction(fr, x[4 + i]) - friction(fr, x_ref[4 + i])
+        out[i] = tau
+
+
+@njit(cache=True)
+def _rk4(c, fr, x, tau, force, h, wm, wh, wj, wr, k1, k2, k3, k4, xt):  # type: ignore[no-untyped-def]
+    dynamics(c, fr, x, tau, force, wm, wh, wj, wr, k1)
+    for i in range(8):
+        xt[i] = x[i] + 0.5 * h * k1[i]
+    dynamics(c, fr, xt, tau, force, wm, wh, wj, wr, k2)
+    for i in range(8):
+        xt[i] = x[i] + 0.5 * h * k2[i]
+    dynamics(c, fr, xt, tau, force, wm, wh, wj, wr, k3)
+    for i in range(8):
+        xt[i] = x[i] + h * k3[i]
+    dynamics(c, fr, xt, tau, force, wm, wh, wj, wr, k4)
+    for i in range(8):
+        x[i] += h * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]) / 6.0
+
+
+@njit(cache=True)
+def closed_loop(  # type: ignore[no-untyped-def]
+    c_plant,
+    fr_plant,
+    c_ctrl,
+    fr_ctrl,
+    k,
+    max_comp,
+    friction_comp,
+    torque_limit,
+    x0,
+    x_ref,
+    tau_ff,
+    dt,
+    substeps,
+    noise,
+    force,
+    impulse,
+    jump,
+    tether,
+    tether_gains,
+    domain_center,
+    domain_shape,
+    stop_on_exit,
+    record,
+    states_out,
+    inputs_out,
+    summary_out,
+    final_out,
+):
+    """Run a batch of closed-loop simulations.
+
+    Shapes: x0 (B, 8); x_ref (T+1, 8) and tau_ff (T+1, 2) at the control ticks;
+    noise (B or 1, T+1, 4); force (T, 3) world force on the body COM held over
+    each tick; impulse (T+1, 3) world impulse on the body COM applied at a tick;
+    jump (T+1, 8) state increment applied at a tick; tether (T, 3) rows
+    [active, v_x, v_y]: while active a horizontal spring-damper with
+    tether_gains [stiffness, damping] pulls the body COM toward an anchor that
+    starts at the COM when the tether becomes active and moves at (v_x, v_y); domain_center
+    (T+1, 4) and domain_shape (T+1, 4, 4) the monitored outer domain D'(t) (pass
+    zero-size arrays for none); states_out (B, T+1, 8) and inputs_out (B, T+1, 2)
+    when ``record``; summary_out (B, 6): [last tick reached, max |lean| (rad),
+    max |τ| commanded (N m), max D'(t) value, saturated ticks, exit tick or -1];
+    final_out (B, 8) the state at the last tick reached.
+    """
+    nb = x0.shape[0]
+    nt = x_ref.shape[0] - 1
+    h = dt / substeps
+    r = c_ctrl[0]
+    monitor = domain_center.shape[0] > 0
+    use_force = force.shape[0] > 0
+    use_tether = tether.shape[0] > 0
+    use_impulse = impulse.shape[0] > 0
+    use_jump = jump.shape[0] > 0
+    one_noise = noise.shape[0] == 1
+    use_noise = noise.shape[1] > 0
+    wm = np.empty((4, 4))
+    wh = np.empty(4)
+    wj = np.empty((3, 4))
+    wr = np.empty(4)
+    k1 = np.empty(8)
+    k2 = np.empty(8)
+    k3 = np.empty(8)
+    k4 = np.empty(8)
+    xt = np.empty(8)
+    tau = np.empty(2)
+    f = np.zeros(3)
+    zero4 = np.zeros(4)
+    dq = np.empty(4)
+    pos = np.empty(3)
+    pv = np.empty(4)
+    anchor = np.zeros(2)
+    for b in range(nb):
+        x = x0[b].copy()
+        max_lean = 0.0
+        max_tau = 0.0
+        max_dom = 0.0
+        saturated = 0
+        exit_tick = -1
+        last = nt
+        for n in range(nt + 1):
+            if use_jump:
+                for i in range(8):
+                    x[i] += jump[n, i]
+            if use_impulse and (
+                impulse[n, 0] != 0.0 or impulse[n, 1] != 0.0 or impulse[n, 2] != 0.0
+            ):
+                mass_matrix(c_plant, x[:4], wm)
+                com_jacobian(c_plant, x[:4], wj)
+                for i in range(4):
+                    wr[i] = (
+                        wj[0, i] * impulse[n, 0]
+                        + wj[1, i] * impulse[n, 1]
+                        + wj[2, i] * impulse[n, 2]
+                    )
+                solve_spd(wm, wr, dq)
+                for i in range(4):
+                    x[4 + i] += dq[i]
+            meas = zero4
+            if use_noise:
+                meas = noise[0, n] if one_noise else noise[b, n]
+            control_law(r, fr_ctrl, k, max_comp, friction_comp, x, meas, x_ref[n], tau_ff[n], tau)
+            for i in range(2):
+                a = abs(tau[i])
+                if a > max_tau:
+                    max_tau = a
+                if tau[i] > torque_limit:
+                    tau[i] = torque_limit
+                    saturated += 1
+                elif tau[i] < -torque_limit:
+                    tau[i] = -torque_limit
+                    saturated += 1
+                a = abs(x[2 + i])
+                if a > max_lean:
+                    max_lean = a
+            if monitor:
+                for i in range(2):
+                    pv[i] = r * (x[i] + x[2 + i]) - domain_center[n, i]
+                    pv[2 + i] = r * (x[4 + i] + x[6 + i]) - domain_center[n, 2 + i]
+                val = 0.0
+                for i in range(4):
+                    for j in range(4):
+                        val += pv[i] * domain_shape[n, i, j] * pv[j]
+                if val > max_dom:
+                    max_dom = val
+                if val > 1.0 and exit_tick < 0:
+                    exit_tick = n
+            if record:
+                for i in range(8):
+                    states_out[b, n, i] = x[i]
+                inputs_out[b, n, 0] = tau[0]
+                inputs_out[b, n, 1] = tau[1]
+            if (exit_tick >= 0 and stop_on_exit) or n == nt:
+                last = n
+                break
+            if use_force:
+                f[0] = force[n, 0]
+                f[1] = force[n, 1]
+                f[2] = force[n, 2]
+            else:
+                f[0] = 0.0
+                f[1] = 0.0
+                f[2] = 0.0
+            tethered = use_tether and tether[n, 0] > 0.0
+            if tethered and (n == 0 or tether[n - 1, 0] == 0.0):
+                com_position(c_plant, x[:4], pos)
+                anchor[0] = pos[0]
+                anchor[1] = pos[1]
+            for _s in range(substeps):
+                if tethered:
+                    com_position(c_plant, x[:4], pos)
+                    com_jacobian(c_plant, x[:4], wj)
+                    for i in range(2):
+                        vel = 0.0
+                        for j in range(4):
+                            vel += wj[i, j] * x[4 + j]
+                        f[i] = (
+                            (force[n, i] if use_force else 0.0)
+                            + tether_gains[0] * (anchor[i] - pos[i])
+                            + tether_gains[1] * (tether[n, 1 + i] - vel)
+                        )
+                _rk4(c_plant, fr_plant, x, tau, f, h, wm, wh, wj, wr, k1, k2, k3, k4, xt)
+                if tethered:
+                    anchor[0] += h * tether[n, 1]
+                    anchor[1] += h * tether[n, 2]
+        summary_out[b, 0] = last
+        summary_out[b, 1] = max_lean
+        summary_out[b, 2] = max_tau
+        summary_out[b, 3] = max_dom
+        summary_out[b, 4] = saturated
+        summary_out[b, 5] = exit_tick
+        for i in range(8):
+            final_out[b, i] = x[i]

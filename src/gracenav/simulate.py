@@ -1,0 +1,530 @@
+"""Closed-loop simulation of the ballbot under the Fig. 2 controllers.
+
+A fixed-step RK4 integrates the 3D model; the controller runs at a fixed rate
+(default 1024 Hz, a step exact in binary) and its torque is held between
+ticks (zero-order hold) and saturated at the torque limit. Single runs and
+batches of initial conditions run through the same compiled loop; a MuJoCo
+plant runs the same control law through :mod:`gracenav.mujoco_plant`.
+
+States are x = [θ_x, θ_y, φ_x, φ_y, θ̇_x, θ̇_y, φ̇_x, φ̇_y] (see
+``docs/design.md``); position states p = [x, y, ẋ, ẏ] with x = r_w (θ_x + φ_x).
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from gracenav.control import ControllerGains, design_gains
+from gracenav.errors import ConfigError
+from gracenav.params import BallbotParams
+
+__all__ = [
+    "BatchResult",
+    "BodyForce",
+    "Disturbance",
+    "Drag",
+    "Push",
+    "Reference",
+    "SimulationOptions",
+    "SimulationResult",
+    "StateJump",
+    "StopReason",
+    "position_state",
+    "simulate",
+    "simulate_batch",
+    "state_from_position",
+]
+
+FloatArray = NDArray[np.float64]
+Plant = Literal["model3d", "mujoco"]
+
+DEFAULT_CONTROL_RATE = 1024.0
+
+
+def position_state(states: ArrayLike, radius: float) -> FloatArray:
+    """Position states [x, y, ẋ, ẏ] (m, m/s) of model states, shape (..., 4)."""
+    s = np.asarray(states, dtype=float)
+    return radius * np.concatenate([s[..., 0:2] + s[..., 2:4], s[..., 4:6] + s[..., 6:8]], axis=-1)
+
+
+def state_from_position(
+    p: ArrayLike, radius: float, lean: ArrayLike = (0.0, 0.0), lean_rate: ArrayLike = (0.0, 0.0)
+) -> FloatArray:
+    """Model state (..., 8) with position state ``p`` (..., 4), lean (rad) and lean rate (rad/s)."""
+    p = np.asarray(p, dtype=float)
+    lean = np.broadcast_to(np.asarray(lean, dtype=float), (*p.shape[:-1], 2))
+    rate = np.broadcast_to(np.asarray(lean_rate, dtype=float), (*p.shape[:-1], 2))
+    return np.concatenate(
+        [p[..., 0:2] / radius - lean, lean, p[..., 2:4] / radius - rate, rate], axis=-1
+    )
+
+
+@dataclass(frozen=True)
+class Reference:
+    """Reference states and feed-forward torques sampled at the control ticks.
+
+    Attributes
+    ----------
+    states : ndarray, shape (T + 1, 8)
+        Reference model state at ticks 0..T.
+    inputs : ndarray, shape (T + 1, 2)
+        Feed-forward torque (N m) at ticks 0..T, including the friction the
+        plan expects at its own ball rate.
+    dt : float
+        Control period (s).
+    """
+
+    states: FloatArray
+    inputs: FloatArray
+    dt: float
+
+    def __post_init__(self) -> None:
+        s = np.ascontiguousarray(self.states, dtype=float)
+        u = np.ascontiguousarray(self.inputs, dtype=float)
+        if s.ndim != 2 or s.shape[1] != 8 or s.shape[0] < 1:
+            raise ConfigError(f"Reference.states must have shape (T+1, 8), got {s.shape}")
+        if u.shape != (s.shape[0], 2):
+            raise ConfigError(f"Reference.inputs must have shape ({s.shape[0]}, 2), got {u.shape}")
+        if not self.dt > 0:
+            raise ConfigError(f"Reference.dt must be positive, got {self.dt!r}")
+        object.__setattr__(self, "states", s)
+        object.__setattr__(self, "inputs", u)
+
+    @property
+    def num_ticks(self) -> int:
+        """Number of control periods T."""
+        return int(self.states.shape[0] - 1)
+
+    @property
+    def duration(self) -> float:
+        """T · dt (s)."""
+        return self.num_ticks * self.dt
+
+    @classmethod
+    def hold(
+        cls,
+        position: ArrayLike,
+        duration: float,
+        *,
+        params: BallbotParams | None = None,
+        dt: float = 1.0 / DEFAULT_CONTROL_RATE,
+    ) -> Reference:
+        """Station keeping: stay upright at rest at ``position`` (x, y) (m) for ``duration`` (s)."""
+        params = params if params is not None else BallbotParams()
+        xy = np.asarray(position, dtype=float)
+        if xy.shape != (2,):
+            raise ConfigError(f"position must be (x, y), got shape {xy.shape}")
+        n = round(duration / dt)
+        if n < 1:
+            raise ConfigError(f"duration must be at least one control period, got {duration!r} s")
+        x = state_from_position(np.r_[xy, 0.0, 0.0], params.ball_radius)
+        return cls(np.tile(x, (n + 1, 1)), np.zeros((n + 1, 2)), dt)
+
+
+@dataclass(frozen=True)
+class Push:
+    """An impulse (N s) on the body centre of mass at ``time`` (s); ``impulse`` is (ix, iy)."""
+
+    time: float
+    impulse: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class BodyForce:
+    """A constant world force (N) (fx, fy) on the body COM over [start_time, end_time)."""
+
+    start_time: float
+    end_time: float
+    force: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class StateJump:
+    """A forced jump ``delta`` (8,) of the model state at ``time`` (s)."""
+
+    time: float
+    delta: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Drag:
+    """The robot held at its body and moved along ``velocity`` (m/s) over [start_time, end_time).
+
+    Modelled as a horizontal spring-damper on the body centre of mass toward an
+    anchor that starts at the body's position and moves at ``velocity``
+    (stiffness in N/m, damping in N s/m).
+    """
+
+    start_time: float
+    end_time: float
+    velocity: tuple[float, float]
+    stiffness: float = 3000.0
+    damping: float = 600.0
+
+
+Disturbance = Push | BodyForce | StateJump | Drag
+
+
+@dataclass(frozen=True)
+class SimulationOptions:
+    """Options of :func:`simulate` and :func:`simulate_batch`.
+
+    Parameters
+    ----------
+    substeps : int
+        RK4 steps per control period (1 is accurate to ~1e-9 m at 1024 Hz).
+    position_noise_std : float
+        Standard deviation of white noise on the measured ball position (m).
+    velocity_noise_std : float
+        Standard deviation of white noise on the measured ball velocity (m/s).
+    seed : int
+        Seed of the noise generator.
+    """
+
+    substeps: int = 1
+    position_noise_std: float = 0.0
+    velocity_noise_std: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.substeps, int) and self.substeps >= 1):
+            raise ConfigError(f"substeps must be a positive integer, got {self.substeps!r}")
+        for name in ("position_noise_std", "velocity_noise_std"):
+            if not getattr(self, name) >= 0.0:
+                raise ConfigError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+
+
+class StopReason(enum.Enum):
+    """Why a simulation stopped."""
+
+    COMPLETED = "completed"
+    DOMAIN_EXIT = "domain_exit"
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    """One closed-loop run.
+
+    Attributes
+    ----------
+    time : ndarray, shape (N,)
+        Control tick times (s).
+    states : ndarray, shape (N, 8)
+        Plant state at each tick (before that tick's disturbances are applied
+        only for ``StateJump``/``Push`` at the same tick: those are applied first).
+    inputs : ndarray, shape (N, 2)
+        Saturated torque commanded at each tick (N m), held until the next.
+    radius : float
+        Ball radius (m), to convert states to position states.
+    max_lean : float
+        Largest |φ_x| or |φ_y| (rad).
+    max_torque : float
+        Largest |τ| the controller asked for before saturation (N m).
+    saturated_ticks : int
+        Number of (tick, axis) pairs where the torque saturated.
+    max_domain_value : float
+        Largest (p − c)ᵀ P (p − c) of the monitored domain (0 if none).
+    stop_reason : StopReason
+    """
+
+    time: FloatArray
+    states: FloatArray
+    inputs: FloatArray
+    radius: float
+    max_lean: float
+    max_torque: float
+    saturated_ticks: int
+    max_domain_value: float
+    stop_reason: StopReason
+
+    @property
+    def position_state(self) -> FloatArray:
+        """[x, y, ẋ, ẏ] at each tick (m, m/s), shape (N, 4)."""
+        return position_state(self.states, self.radius)
+
+    @property
+    def lean(self) -> FloatArray:
+        """[φ_x, φ_y] at each tick (rad), shape (N, 2)."""
+        return self.states[:, 2:4]
+
+
+@dataclass(frozen=True)
+class BatchResult:
+    """A batch of closed-loop runs from different initial states.
+
+    Attributes
+    ----------
+    final_states : ndarray, shape (B, 8)
+        State at the last tick each run reached.
+    last_tick : ndarray of int, shape (B,)
+    max_lean, max_torque, max_domain_value : ndarray, shape (B,)
+    saturated_ticks : ndarray of int, shape (B,)
+    exit_tick : ndarray of int, shape (B,)
+        First tick outside the monitored domain, −1 if never.
+    states : ndarray, shape (B, T + 1, 8) or None
+        Histories, when recorded.
+    """
+
+    final_states: FloatArray
+    last_tick: NDArray[np.int64]
+    max_lean: FloatArray
+    max_torque: FloatArray
+    max_domain_value: FloatArray
+    saturated_ticks: NDArray[np.int64]
+    exit_tick: NDArray[np.int64]
+    states: FloatArray | None = field(default=None)
+
+
+def _tick(t: float, dt: float, num_ticks: int, what: str) -> int:
+    n = round(t / dt)
+    if not 0 <= n <= num_ticks:
+        raise ConfigError(
+            f"{what} time {t!r} s is outside the simulated interval [0, {num_ticks * dt}] s"
+        )
+    return int(n)
+
+
+def _disturbance_arrays(
+    disturbances: Sequence[Disturbance], dt: float, nt: int
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Per-tick arrays for the compiled loop (zero-size when a kind is unused)."""
+    force = np.zeros((0, 3))
+    impulse = np.zeros((0, 3))
+    jump = np.zeros((0, 8))
+    tether = np.zeros((0, 3))
+    gains = np.zeros(2)
+    for d in disturbances:
+        if isinstance(d, Push):
+            if impulse.shape[0] == 0:
+                impulse = np.zeros((nt + 1, 3))
+            impulse[_tick(d.time, dt, nt, "push"), :2] += np.asarray(d.impulse, dtype=float)
+        elif isinstance(d, StateJump):
+            delta = np.asarray(d.delta, dtype=float)
+            if delta.shape != (8,):
+                raise ConfigError(f"StateJump.delta must have 8 entries, got {delta.shape}")
+            if jump.shape[0] == 0:
+                jump = np.zeros((nt + 1, 8))
+            jump[_tick(d.time, dt, nt, "state jump")] += delta
+        elif isinstance(d, BodyForce):
+            if force.shape[0] == 0:
+                force = np.zeros((max(nt, 1), 3))
+            a = _tick(d.start_time, dt, nt, "force start")
+            b = _tick(d.end_time, dt, nt, "force end")
+            force[a:b, :2] += np.asarray(d.force, dtype=float)
+        elif isinstance(d, Drag):
+            if tether.shape[0] == 0:
+                tether = np.zeros((max(nt, 1), 3))
+            elif np.any(gains != (d.stiffness, d.damping)):
+                raise ConfigError("all drags of one simulation must share stiffness and damping")
+            gains = np.array([d.stiffness, d.damping], dtype=float)
+            a = _tick(d.start_time, dt, nt, "drag start")
+            b = _tick(d.end_time, dt, nt, "drag end")
+            tether[a:b, 0] = 1.0
+            tether[a:b, 1:3] = np.asarray(d.velocity, dtype=float)
+        else:  # pragma: no cover - typing guards this
+            raise ConfigError(f"unknown disturbance {d!r}")
+    return force, impulse, jump, tether, gains
+
+
+def _friction_constants(params: BallbotParams) -> FloatArray:
+    return np.array([params.coulomb_friction, params.viscous_friction, params.friction_smoothing])
+
+
+def _model_constants(params: BallbotParams) -> FloatArray:
+    from gracenav.model.ballbot3d import Ballbot3D
+
+    return Ballbot3D(params).constants()
+
+
+def _noise(options: SimulationOptions, runs: int, nt: int) -> FloatArray:
+    if options.position_noise_std == 0.0 and options.velocity_noise_std == 0.0:
+        return np.zeros((1, 0, 4))
+    rng = np.random.default_rng(options.seed)
+    std = np.array([options.position_noise_std] * 2 + [options.velocity_noise_std] * 2)
+    return rng.standard_normal((runs, nt + 1, 4)) * std
+
+
+def _run_kernel(
+    x0: FloatArray,
+    reference: Reference,
+    gains: ControllerGains,
+    plant_params: BallbotParams,
+    disturbances: Sequence[Disturbance],
+    options: SimulationOptions,
+    monitor: tuple[FloatArray, FloatArray] | None,
+    stop_on_exit: bool,
+    record: bool,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    from gracenav import _kernels
+
+    nb = x0.shape[0]
+    nt = reference.num_ticks
+    force, impulse, jump, tether, tgains = _disturbance_arrays(disturbances, reference.dt, nt)
+    if monitor is None:
+        centers = np.zeros((0, 4))
+        shapes = np.zeros((0, 4, 4))
+    else:
+        centers = np.ascontiguousarray(monitor[0], dtype=float)
+        shapes = np.ascontiguousarray(monitor[1], dtype=float)
+        if centers.shape != (nt + 1, 4) or shapes.shape != (nt + 1, 4, 4):
+            raise ConfigError(
+                f"monitored domain must have centres ({nt + 1}, 4) and shapes ({nt + 1}, 4, 4), "
+                f"got {centers.shape} and {shapes.shape}"
+            )
+    states = np.zeros((nb, nt + 1, 8) if record else (nb, 0, 8))
+    inputs = np.zeros((nb, nt + 1, 2) if record else (nb, 0, 2))
+    summary = np.zeros((nb, 6))
+    final = np.zeros((nb, 8))
+    _kernels.closed_loop(
+        _model_constants(plant_params),
+        _friction_constants(plant_params),
+        _model_constants(gains.params),
+        _friction_constants(gains.params),
+        gains.kernel_arrays(),
+        gains.max_lean_compensation,
+        gains.friction_compensation,
+        plant_params.torque_limit,
+        np.ascontiguousarray(x0, dtype=float),
+        reference.states,
+        reference.inputs,
+        reference.dt,
+        options.substeps,
+        _noise(options, nb, nt),
+        force,
+        impulse,
+        jump,
+        tether,
+        tgains,
+        centers,
+        shapes,
+        stop_on_exit,
+        record,
+        states,
+        inputs,
+        summary,
+        final,
+    )
+    return states, inputs, summary, final
+
+
+def _check_state(x0: ArrayLike, batch: bool) -> FloatArray:
+    x = np.asarray(x0, dtype=float)
+    want = "(B, 8)" if batch else "(8,)"
+    if (batch and (x.ndim != 2 or x.shape[1] != 8)) or (not batch and x.shape != (8,)):
+        raise ConfigError(f"initial state must have shape {want}, got {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise ConfigError("initial state contains non-finite values")
+    return x
+
+
+def simulate(
+    x0: ArrayLike,
+    reference: Reference,
+    gains: ControllerGains | None = None,
+    *,
+    params: BallbotParams | None = None,
+    plant: Plant = "model3d",
+    disturbances: Sequence[Disturbance] = (),
+    options: SimulationOptions | None = None,
+    monitor: tuple[FloatArray, FloatArray] | None = None,
+    stop_on_exit: bool = False,
+) -> SimulationResult:
+    """Simulate one closed-loop run of the Fig. 2 controllers tracking ``reference``.
+
+    Parameters
+    ----------
+    x0 : array_like, shape (8,)
+        Initial plant state.
+    reference : Reference
+        Reference states and feed-forward torques at the control ticks; the
+        run lasts ``reference.duration``.
+    gains : ControllerGains, optional
+        Controller (default: :func:`gracenav.control.design_gains` on ``params``).
+    params : BallbotParams, optional
+        Parameters of the *plant* (default: the controller's nominal ones).
+        Different values from ``gains.params`` simulate model mismatch.
+    plant : {"model3d", "mujoco"}
+        The gracenav 3D model (compiled RK4) or the MuJoCo model.
+    disturbances : sequence of Push, BodyForce, StateJump, Drag
+    options : SimulationOptions, optional
+    monitor : (centres (T+1, 4), shapes (T+1, 4, 4)), optional
+        Outer domain D'(t) to monitor: {p : (p − c)ᵀ P (p − c) <= 1}.
+    stop_on_exit : bool
+        Stop at the first tick outside the monitored domain.
+
+    Returns
+    -------
+    SimulationResult
+    """
+    x = _check_state(x0, batch=False)
+    gains = gains if gains is not None else design_gains(params)
+    plant_params = params if params is not None else gains.params
+    options = options if options is not None else SimulationOptions()
+    if plant == "mujoco":
+        from gracenav.mujoco_plant import simulate_mujoco
+
+        return simulate_mujoco(
+            x, reference, gains, plant_params, disturbances, options, monitor, stop_on_exit
+        )
+    if plant != "model3d":
+        raise ConfigError(f"plant must be 'model3d' or 'mujoco', got {plant!r}")
+    states, inputs, summary, _ = _run_kernel(
+        x[None], reference, gains, plant_params, disturbances, options, monitor, stop_on_exit, True
+    )
+    last = int(summary[0, 0])
+    return SimulationResult(
+        time=np.arange(last + 1) * reference.dt,
+        states=states[0, : last + 1],
+        inputs=inputs[0, : last + 1],
+        radius=plant_params.ball_radius,
+        max_lean=float(summary[0, 1]),
+        max_torque=float(summary[0, 2]),
+        saturated_ticks=int(summary[0, 4]),
+        max_domain_value=float(summary[0, 3]),
+        stop_reason=StopReason.DOMAIN_EXIT
+        if stop_on_exit and summary[0, 5] >= 0
+        else StopReason.COMPLETED,
+    )
+
+
+def simulate_batch(
+    x0: ArrayLike,
+    reference: Reference,
+    gains: ControllerGains | None = None,
+    *,
+    params: BallbotParams | None = None,
+    disturbances: Sequence[Disturbance] = (),
+    options: SimulationOptions | None = None,
+    monitor: tuple[FloatArray, FloatArray] | None = None,
+    stop_on_exit: bool = False,
+    record: bool = False,
+) -> BatchResult:
+    """Simulate many closed-loop runs from the initial states ``x0`` (B, 8) at once.
+
+    Same arguments as :func:`simulate` (model3d plant only). ``record`` keeps the
+    full state histories.
+    """
+    x = _check_state(x0, batch=True)
+    gains = gains if gains is not None else design_gains(params)
+    plant_params = params if params is not None else gains.params
+    options = options if options is not None else SimulationOptions()
+    states, _, summary, final = _run_kernel(
+        x, reference, gains, plant_params, disturbances, options, monitor, stop_on_exit, record
+    )
+    last = summary[:, 0].astype(np.int64)
+    return BatchResult(
+        final_states=final,
+        last_tick=last,
+        max_lean=summary[:, 1].copy(),
+        max_torque=summary[:, 2].copy(),
+        max_domain_value=summary[:, 3].copy(),
+        saturated_ticks=summary[:, 4].astype(np.int64),
+        exit_tick=summary[:, 5].astype(np.int64),
+        states=states if record else None,
+    )
