@@ -1,0 +1,198 @@
+"""Closed-loop simulation: balancing, station keeping, robustness, numerics."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gracenav import BallbotParams, ConfigError
+from gracenav.control import design_gains
+from gracenav.model import Ballbot3D
+from gracenav.simulate import (
+    BodyForce,
+    Drag,
+    Push,
+    Reference,
+    SimulationOptions,
+    StateJump,
+    simulate,
+    simulate_batch,
+    state_from_position,
+)
+
+PARAMS = BallbotParams()
+R = PARAMS.ball_radius
+
+
+def leaning_start(deg: float = 5.0) -> np.ndarray:
+    return state_from_position(np.zeros(4), R, lean=np.deg2rad([deg, deg]))
+
+
+def test_recovers_from_five_degree_lean_in_both_planes() -> None:
+    res = simulate(leaning_start(5.0), Reference.hold((0.0, 0.0), 5.0))
+    p = res.position_state
+    assert np.hypot(*p[-1, :2]) < 0.02  # back within 2 cm of the start in 5 s
+    assert np.max(np.abs(res.lean[-1])) < np.deg2rad(0.2)
+    assert res.max_lean == pytest.approx(np.deg2rad(5.0), rel=1e-9)  # never leaned further
+    assert res.saturated_ticks == 0
+
+
+def test_holds_position_to_millimetres_with_friction_compensation() -> None:
+    """Friction compensation removes the Coulomb dead zone (3-6 cm without it)."""
+    x0 = state_from_position([0.01, -0.01, 0, 0], R)
+    ref = Reference.hold((0.0, 0.0), 8.0)
+    with_fc = simulate(x0, ref).position_state[-1]
+    without = simulate(x0, ref, design_gains(PARAMS, friction_compensation=False)).position_state[
+        -1
+    ]
+    assert np.hypot(*with_fc[:2]) < 1e-3
+    assert np.hypot(*without[:2]) > 2 * np.hypot(*with_fc[:2])
+
+
+@pytest.mark.parametrize("mismatch", [0.8, 1.2])
+def test_station_keeping_against_push_with_model_mismatch(mismatch: float) -> None:
+    plant = PARAMS.scaled(mass_scale=mismatch, inertia_scale=mismatch)
+    res = simulate(
+        state_from_position(np.zeros(4), R),
+        Reference.hold((0.0, 0.0), 8.0),
+        design_gains(PARAMS),
+        params=plant,
+        disturbances=[Push(time=1.0, impulse=(10.0, -6.0))],
+    )
+    p = res.position_state
+    assert np.max(np.abs(p[:, :2])) > 0.05  # the push really moved it
+    assert res.max_lean < np.deg2rad(15.0)
+    assert np.hypot(*p[-1, :2]) < 0.01
+    assert np.max(np.abs(p[-1, 2:])) < 0.01
+
+
+@pytest.mark.parametrize("mismatch", [0.8, 1.2])
+def test_recovery_with_model_mismatch(mismatch: float) -> None:
+    plant = PARAMS.scaled(mass_scale=mismatch, inertia_scale=mismatch)
+    res = simulate(leaning_start(5.0), Reference.hold((0.0, 0.0), 5.0), params=plant)
+    assert np.hypot(*res.position_state[-1, :2]) < 0.02
+
+
+def test_push_changes_velocity_as_impulse_over_effective_mass() -> None:
+    """Right after an impulse J at the body COM, Δq̇ = M⁻¹ Jᵀ I (checked with the model)."""
+    model = Ballbot3D(PARAMS)
+    x0 = state_from_position(np.zeros(4), R)
+    res = simulate(x0, Reference.hold((0, 0), 0.5), disturbances=[Push(time=0.25, impulse=(5, 2))])
+    n = round(0.25 * 1024)
+    expected = np.linalg.solve(
+        model.mass_matrix(res.states[n, :4]), model.com_jacobian(res.states[n, :4]).T @ [5, 2, 0]
+    )
+    before = simulate(x0, Reference.hold((0, 0), 0.25)).states[-1]
+    np.testing.assert_allclose(res.states[n, 4:] - before[4:], expected, rtol=1e-9, atol=1e-12)
+
+
+def test_batch_equals_single_runs() -> None:
+    rng = np.random.default_rng(3)
+    x0 = state_from_position(rng.uniform(-0.1, 0.1, (5, 4)), R)
+    ref = Reference.hold((0.0, 0.0), 1.0)
+    batch = simulate_batch(x0, ref, record=True)
+    assert batch.states is not None
+    for i in range(5):
+        single = simulate(x0[i], ref)
+        np.testing.assert_array_equal(batch.states[i], single.states)
+        np.testing.assert_array_equal(batch.final_states[i], single.states[-1])
+        assert batch.max_lean[i] == single.max_lean
+
+
+def test_rk4_converges_with_substeps() -> None:
+    ref = Reference.hold((0.0, 0.0), 2.0)
+    a = simulate(leaning_start(), ref).states[-1]
+    b = simulate(leaning_start(), ref, options=SimulationOptions(substeps=4)).states[-1]
+    np.testing.assert_allclose(a, b, atol=1e-8)
+
+
+def test_power_balance_in_closed_loop() -> None:
+    """ΔE = ∫ (τ·θ̇ − friction power + force power) dt along a closed-loop run (friction on)."""
+    model = Ballbot3D(PARAMS)
+    ref = Reference.hold((0.0, 0.0), 2.0)
+    res = simulate(leaning_start(), ref, options=SimulationOptions(substeps=4))
+    q, qd = res.states[:, :4], res.states[:, 4:]
+    e = model.energy(q, qd)
+    power = np.sum(res.inputs * qd[:, :2], axis=1) - np.sum(model.friction(qd) * qd[:, :2], axis=1)
+    # Inputs are held over a tick; integrate the power with the trapezoid rule per tick.
+    work = np.sum(0.5 * (power[:-1] + power[1:])) * ref.dt
+    # Trapezoid error with ZOH inputs is O(dt²): compare against the energy swing.
+    assert abs((e[-1] - e[0]) - work) < 1e-3 * np.ptp(e)
+
+
+def test_state_jump_and_body_force() -> None:
+    x0 = state_from_position(np.zeros(4), R)
+    delta = np.zeros(8)
+    delta[6] = 0.1  # a kick of the lean rate in the x plane
+    res = simulate(x0, Reference.hold((0, 0), 1.0), disturbances=[StateJump(0.5, tuple(delta))])
+    n = 512
+    assert res.states[n, 6] == pytest.approx(0.1, abs=1e-12)
+    assert res.states[n - 1, 6] == pytest.approx(0.0, abs=1e-12)
+    # A sustained force shifts the equilibrium lean against it.
+    res = simulate(x0, Reference.hold((0, 0), 6.0), disturbances=[BodyForce(0.0, 6.0, (20.0, 0.0))])
+    assert res.states[-1, 2] < -np.deg2rad(1.0)
+
+
+def test_drag_moves_the_robot_with_the_anchor() -> None:
+    x0 = state_from_position(np.zeros(4), R)
+    res = simulate(
+        x0,
+        Reference.hold((0, 0), 6.0),
+        disturbances=[Drag(start_time=1.0, end_time=3.0, velocity=(0.0, 0.3))],
+    )
+    p = res.position_state
+    n = round(2.9 * 1024)
+    # While dragged the ball moves roughly with the anchor (the controller pulls back).
+    assert p[n, 1] > 0.3
+    assert p[n, 3] == pytest.approx(0.3, abs=0.1)
+    # Released, it returns toward its reference.
+    assert abs(p[-1, 1]) < p[n, 1]
+
+
+def test_sensor_noise_is_seeded() -> None:
+    ref = Reference.hold((0, 0), 1.0)
+    x0 = state_from_position(np.zeros(4), R)
+    a = simulate(x0, ref, options=SimulationOptions(position_noise_std=0.002, seed=1))
+    b = simulate(x0, ref, options=SimulationOptions(position_noise_std=0.002, seed=1))
+    c = simulate(x0, ref, options=SimulationOptions(position_noise_std=0.002, seed=2))
+    np.testing.assert_array_equal(a.states, b.states)
+    assert not np.array_equal(a.states, c.states)
+    assert np.max(np.abs(a.position_state[:, :2])) < 0.01
+
+
+def test_torque_saturates_at_limit() -> None:
+    plant = BallbotParams(torque_limit=5.0)
+    res = simulate(leaning_start(3.0), Reference.hold((0, 0), 0.5), design_gains(plant))
+    assert res.saturated_ticks > 0
+    assert np.max(np.abs(res.inputs)) == pytest.approx(5.0)
+    assert res.max_torque > 5.0
+
+
+def test_monitored_domain_stops_on_exit() -> None:
+    ref = Reference.hold((0, 0), 2.0)
+    n = ref.num_ticks + 1
+    centers = np.zeros((n, 4))
+    shapes = np.tile(np.diag([1 / 0.05**2, 1 / 0.05**2, 1 / 0.5**2, 1 / 0.5**2]), (n, 1, 1))
+    x0 = state_from_position([0.0, 0.0, 0.0, 0.0], R)
+    res = simulate(
+        x0,
+        ref,
+        monitor=(centers, shapes),
+        stop_on_exit=True,
+        disturbances=[Push(time=0.5, impulse=(30.0, 0.0))],
+    )
+    assert res.stop_reason.value == "domain_exit"
+    assert 0.5 < res.time[-1] < 2.0
+    assert res.max_domain_value > 1.0
+
+
+def test_bad_inputs() -> None:
+    ref = Reference.hold((0, 0), 0.1)
+    with pytest.raises(ConfigError, match=r"shape \(8,\)"):
+        simulate(np.zeros(7), ref)
+    with pytest.raises(ConfigError, match="outside the simulated interval"):
+        simulate(np.zeros(8), ref, disturbances=[Push(time=5.0, impulse=(1, 0))])
+    with pytest.raises(ConfigError, match="plant"):
+        simulate(np.zeros(8), ref, plant="gazebo")  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match="duration"):
+        Reference.hold((0, 0), 0.0)
