@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from gracenav.model.ballbot3d import Ballbot3D
 from gracenav.model.planar import PlanarBallbot
 
-__all__ = ["PlanarBallbot"]
+__all__ = ["Ballbot3D", "PlanarBallbot"]
