@@ -31,13 +31,13 @@ com_position = njit(cache=True)(_gen.com_position)
 
 
 @njit(cache=True)
-def friction(fr, thd):  # type: ignore[no-untyped-def]
+def friction(fr, thd):
     """Smooth friction torque D_c tanh(θ̇/ε) + D_v θ̇ (N m)."""
     return fr[0] * np.tanh(thd / fr[2]) + fr[1] * thd
 
 
 @njit(cache=True)
-def solve_spd(m, b, out):  # type: ignore[no-untyped-def]
+def solve_spd(m, b, out):
     """Solve m @ out = b for a small symmetric positive definite m (Cholesky, in place)."""
     n = b.shape[0]
     for j in range(n):
@@ -63,7 +63,7 @@ def solve_spd(m, b, out):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def dynamics(c, fr, x, tau, force, wm, wh, wj, wr, xdot):  # type: ignore[no-untyped-def]
+def dynamics(c, fr, x, tau, force, wm, wh, wj, wr, xdot):
     """State derivative of the 3D model with drive torque ``tau`` (2,) and a world force
     ``force`` (3,) on the body centre of mass. ``wm`` (4,4), ``wh`` (4,), ``wj`` (3,4),
     ``wr`` (4,) are workspaces; the result is written to ``xdot`` (8,)."""
@@ -82,7 +82,7 @@ def dynamics(c, fr, x, tau, force, wm, wh, wj, wr, xdot):  # type: ignore[no-unt
 
 
 @njit(cache=True)
-def control_law(r, fr, k, max_comp, friction_comp, x, meas_noise, x_ref, tau_ff, out):  # type: ignore[no-untyped-def]
+def control_law(r, fr, k, max_comp, friction_comp, x, meas_noise, x_ref, tau_ff, out):
     """Fig. 2 cascade for both planes; writes the (unsaturated) torque to ``out`` (2,).
 
     ``meas_noise`` (4,) is added to the measured [p_x, p_y, ṗ_x, ṗ_y]."""
@@ -104,7 +104,7 @@ def control_law(r, fr, k, max_comp, friction_comp, x, meas_noise, x_ref, tau_ff,
 
 
 @njit(cache=True)
-def _rk4(c, fr, x, tau, force, h, wm, wh, wj, wr, k1, k2, k3, k4, xt):  # type: ignore[no-untyped-def]
+def _rk4(c, fr, x, tau, force, h, wm, wh, wj, wr, k1, k2, k3, k4, xt):
     dynamics(c, fr, x, tau, force, wm, wh, wj, wr, k1)
     for i in range(8):
         xt[i] = x[i] + 0.5 * h * k1[i]
@@ -120,7 +120,7 @@ def _rk4(c, fr, x, tau, force, h, wm, wh, wj, wr, k1, k2, k3, k4, xt):  # type: 
 
 
 @njit(cache=True)
-def closed_loop(  # type: ignore[no-untyped-def]
+def closed_loop(
     c_plant,
     fr_plant,
     c_ctrl,

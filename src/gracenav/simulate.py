@@ -178,7 +178,7 @@ class SimulationOptions:
     Parameters
     ----------
     substeps : int
-        RK4 steps per control period (1 is accurate to ~1e-9 m at 1024 Hz).
+        RK4 steps per control period (1 is accurate to ~1e-7 m at 1024 Hz).
     position_noise_std : float
         Standard deviation of white noise on the measured ball position (m).
     velocity_noise_std : float
@@ -467,9 +467,7 @@ def simulate(
     plant_params = params if params is not None else gains.params
     options = options if options is not None else SimulationOptions()
     if plant == "mujoco":
-        from gracenav.mujoco_plant import simulate_mujoco
-
-        return simulate_mujoco(
+        return _simulate_mujoco(
             x, reference, gains, plant_params, disturbances, options, monitor, stop_on_exit
         )
     if plant != "model3d":
@@ -479,7 +477,7 @@ def simulate(
     )
     last = int(summary[0, 0])
     return SimulationResult(
-        time=np.arange(last + 1) * reference.dt,
+        time=np.arange(last + 1, dtype=np.float64) * np.float64(reference.dt),
         states=states[0, : last + 1],
         inputs=inputs[0, : last + 1],
         radius=plant_params.ball_radius,
@@ -527,4 +525,99 @@ def simulate_batch(
         saturated_ticks=summary[:, 4].astype(np.int64),
         exit_tick=summary[:, 5].astype(np.int64),
         states=states if record else None,
+    )
+
+
+def _simulate_mujoco(
+    x0: FloatArray,
+    reference: Reference,
+    gains: ControllerGains,
+    plant_params: BallbotParams,
+    disturbances: Sequence[Disturbance],
+    options: SimulationOptions,
+    monitor: tuple[FloatArray, FloatArray] | None,
+    stop_on_exit: bool,
+) -> SimulationResult:
+    """The closed loop with MuJoCo as the plant (same control law, Python loop)."""
+    from gracenav import _kernels
+    from gracenav.model.ballbot3d import Ballbot3D
+    from gracenav.mujoco_plant import MujocoBallbot
+
+    nt = reference.num_ticks
+    dt = reference.dt
+    force, impulse, jump, tether, tgains = _disturbance_arrays(disturbances, dt, nt)
+    noise = _noise(options, 1, nt)
+    plant = MujocoBallbot(plant_params, timestep=dt / options.substeps)
+    model = Ballbot3D(plant_params)
+    plant.set_state(x0)
+    fr = _friction_constants(gains.params)
+    k = gains.kernel_arrays()
+    r = gains.params.ball_radius
+    states = np.zeros((nt + 1, 8))
+    inputs = np.zeros((nt + 1, 2))
+    tau = np.zeros(2)
+    zero = np.zeros(4)
+    max_lean = max_tau = max_dom = 0.0
+    saturated = 0
+    exit_tick = -1
+    anchor = np.zeros(2)
+    last = nt
+    for n in range(nt + 1):
+        x = plant.get_state()
+        if jump.shape[0]:
+            x = x + jump[n]
+            plant.set_state(x)
+        meas = noise[0, n] if noise.shape[1] else zero
+        _kernels.control_law(
+            r,
+            fr,
+            k,
+            gains.max_lean_compensation,
+            gains.friction_compensation,
+            x,
+            meas,
+            reference.states[n],
+            reference.inputs[n],
+            tau,
+        )
+        max_tau = max(max_tau, float(np.max(np.abs(tau))))
+        saturated += int(np.count_nonzero(np.abs(tau) > plant_params.torque_limit))
+        np.clip(tau, -plant_params.torque_limit, plant_params.torque_limit, out=tau)
+        max_lean = max(max_lean, float(np.max(np.abs(x[2:4]))))
+        if monitor is not None:
+            dp = position_state(x, r) - monitor[0][n]
+            val = float(dp @ monitor[1][n] @ dp)
+            max_dom = max(max_dom, val)
+            if val > 1.0 and exit_tick < 0:
+                exit_tick = n
+        states[n] = x
+        inputs[n] = tau
+        if (exit_tick >= 0 and stop_on_exit) or n == nt:
+            last = n
+            break
+        f = np.zeros(3)
+        if force.shape[0]:
+            f += force[n]
+        if impulse.shape[0] and np.any(impulse[n] != 0.0):
+            f += impulse[n] / dt
+        if tether.shape[0] and tether[n, 0] > 0.0:
+            com = model.com_position(x[:4])
+            if n == 0 or tether[n - 1, 0] == 0.0:
+                anchor = com[:2].copy()
+            vel = model.com_jacobian(x[:4]) @ x[4:]
+            f[:2] += tgains[0] * (anchor - com[:2]) + tgains[1] * (tether[n, 1:3] - vel[:2])
+            anchor = anchor + dt * tether[n, 1:3]
+        plant.step(tau, options.substeps, body_force=f)
+    return SimulationResult(
+        time=np.arange(last + 1, dtype=np.float64) * np.float64(dt),
+        states=states[: last + 1],
+        inputs=inputs[: last + 1],
+        radius=plant_params.ball_radius,
+        max_lean=max_lean,
+        max_torque=max_tau,
+        saturated_ticks=saturated,
+        max_domain_value=max_dom,
+        stop_reason=StopReason.DOMAIN_EXIT
+        if stop_on_exit and exit_tick >= 0
+        else StopReason.COMPLETED,
     )

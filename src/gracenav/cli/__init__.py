@@ -25,7 +25,7 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """Build the argument parser with all sub-commands."""
-    from gracenav.cli import simulate_cmd
+    from gracenav.cli import palette_cmd, plot_cmd, simulate_cmd
 
     parser = _Parser(
         prog="gracenav",
@@ -40,12 +40,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
     simulate_cmd.register(sub)
-    try:
-        from gracenav.cli import plot_cmd
-    except ImportError:  # pragma: no cover - plotting commands need the planners
-        pass
-    else:
-        plot_cmd.register(sub)
+    palette_cmd.register(sub)
+    plot_cmd.register(sub)
     return parser
 
 

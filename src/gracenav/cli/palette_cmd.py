@@ -1,0 +1,153 @@
+"""``gracenav palette ...``: build, verify and show the motion policy palette."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["register"]
+
+
+def register(sub: Any) -> None:
+    """Add the ``palette`` command group."""
+    p = sub.add_parser(
+        "palette",
+        help="build, verify or show the motion policy palette",
+        description=(
+            "The motion policy palette: one verified motion policy per primitive of the "
+            "set Σ(d). The palette shipped with gracenav is used unless --file is given."
+        ),
+    )
+    s = p.add_subparsers(dest="what", metavar="WHAT", parser_class=type(p))
+    s.required = True
+    b = s.add_parser(
+        "build",
+        help="plan the primitives, size and verify every policy, write the palette file",
+        description=(
+            "Plan the primitive set Σ(d), then size each policy's start domain by bisection "
+            "and verify it on the 3D model from points on the surface of S. Policies that "
+            "fail are left out and listed. Runs in parallel worker processes."
+        ),
+    )
+    b.add_argument("--out", type=Path, default=None, help="palette file (default: the shipped one)")
+    b.add_argument("--processes", type=int, default=2, help="worker processes (default 2)")
+    b.add_argument("--d", type=float, default=0.5, help="distance parameter d (m, default 0.5)")
+    b.set_defaults(func=run_build)
+    v = s.add_parser(
+        "verify",
+        help="re-verify every policy of a palette file on the 3D model",
+        description="Re-run the verification of every policy of the palette and report.",
+    )
+    v.add_argument("--file", type=Path, default=None, help="palette file (default: shipped)")
+    v.set_defaults(func=run_verify)
+    sh = s.add_parser(
+        "show",
+        help="print the palette as a table",
+        description=(
+            "Print name, duration, start and goal radii, worst D' margin, max lean and max "
+            "torque of every policy (lean in degrees)."
+        ),
+    )
+    sh.add_argument("--file", type=Path, default=None, help="palette file (default: shipped)")
+    sh.set_defaults(func=run_show)
+
+
+def _table(palette: Any) -> str:
+    rows = [
+        (
+            "name",
+            "T (s)",
+            "S pos (m)",
+            "S vel (m/s)",
+            "G pos (m)",
+            "G vel (m/s)",
+            "D' margin",
+            "max lean (°)",
+            "max τ (N m)",
+        )
+    ]
+    for pol in palette.policies:
+        rep = pol.report
+        rows.append(
+            (
+                pol.name,
+                f"{pol.duration:.3f}",
+                f"{pol.start_radii.position:.3f}",
+                f"{pol.start_radii.velocity:.3f}",
+                f"{pol.goal_radii.position:.3f}",
+                f"{pol.goal_radii.velocity:.3f}",
+                "-" if rep is None else f"{1.0 - np.sqrt(rep.max_outer_value):.3f}",
+                "-" if rep is None else f"{np.rad2deg(rep.max_lean):.2f}",
+                "-" if rep is None else f"{rep.max_torque:.1f}",
+            )
+        )
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)) for r in rows]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    return "\n".join(lines)
+
+
+def run_build(args: argparse.Namespace) -> int:
+    """Run ``gracenav palette build``."""
+    import time
+
+    from gracenav.errors import ConfigError
+    from gracenav.palette import build_palette, shipped_palette_path
+    from gracenav.policies import SampledPrimitive
+    from gracenav.primitives import primitive_set
+
+    if args.processes < 1:
+        raise ConfigError(f"--processes must be >= 1, got {args.processes}")
+    t0 = time.perf_counter()
+    prims = [SampledPrimitive.from_primitive(p) for p in primitive_set(d=args.d)]
+    t1 = time.perf_counter()
+    pal = build_palette(prims, d=args.d, processes=args.processes)
+    t2 = time.perf_counter()
+    out = pal.save(args.out if args.out is not None else shipped_palette_path())
+    print(_table(pal))
+    for name, rep in pal.rejected:
+        print(
+            f"rejected {name}: D' value {rep.max_outer_value:.2f}, goal value "
+            f"{rep.max_goal_value:.2f}, lean {np.rad2deg(rep.max_lean):.1f}°, "
+            f"saturated runs {rep.saturated_runs}"
+        )
+    print(
+        f"{len(pal)} policies verified, {len(pal.rejected)} rejected; primitives planned in "
+        f"{t1 - t0:.1f} s, policies sized and verified in {t2 - t1:.1f} s; wrote {out}"
+    )
+    return 0
+
+
+def run_verify(args: argparse.Namespace) -> int:
+    """Run ``gracenav palette verify``."""
+    import time
+
+    from gracenav.palette import load_palette
+    from gracenav.policies import verify_policy
+
+    pal = load_palette(args.file)
+    t0 = time.perf_counter()
+    failed = []
+    for pol in pal.policies:
+        rep = verify_policy(pol, pal.options)
+        if not rep.passed:
+            failed.append(pol.name)
+    dt = time.perf_counter() - t0
+    if failed:
+        print(f"{len(failed)} of {len(pal)} policies FAILED verification: {', '.join(failed)}")
+        return 1
+    print(f"all {len(pal)} policies verified in {dt:.1f} s")
+    return 0
+
+
+def run_show(args: argparse.Namespace) -> int:
+    """Run ``gracenav palette show``."""
+    from gracenav.palette import load_palette
+
+    pal = load_palette(args.file)
+    print(_table(pal))
+    print(f"{len(pal)} policies, d = {pal.d} m, key {pal.key[:12]}")
+    return 0

@@ -1,0 +1,59 @@
+"""``gracenav plot ...``: the paper's figures."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+__all__ = ["register"]
+
+
+def register(sub: Any) -> None:
+    """Add the ``plot`` command group."""
+    p = sub.add_parser(
+        "plot",
+        help="draw the paper's figures",
+        description="Draw figures as PNG files (angles in degrees, lengths in metres).",
+    )
+    s = p.add_subparsers(dest="what", metavar="WHAT", parser_class=type(p))
+    s.required = True
+    pr = s.add_parser(
+        "primitives",
+        help="XY paths of the motion primitive set Σ(d) (paper Fig. 3(a))",
+        description="Plan (or load from the cache) the primitive set and draw its XY paths.",
+    )
+    pr.add_argument("--d", type=float, default=0.5, help="distance parameter d (m, default 0.5)")
+    pr.add_argument("--out", type=Path, required=True, help="output PNG file")
+    pr.set_defaults(func=run_primitives)
+    dm = s.add_parser(
+        "domain",
+        help="XY projection of one policy's S, D'(t) and G (paper Fig. 3(b))",
+        description="Draw the XY projection of the start domain S, the outer domain D'(t) "
+        "over the primitive, and the goal domain G of the named palette policy.",
+    )
+    dm.add_argument("name", help="policy name (see `gracenav palette show`)")
+    dm.add_argument("--file", type=Path, default=None, help="palette file (default: shipped)")
+    dm.add_argument("--out", type=Path, required=True, help="output PNG file")
+    dm.set_defaults(func=run_domain)
+
+
+def run_primitives(args: argparse.Namespace) -> int:
+    """Run ``gracenav plot primitives``."""
+    from gracenav.plotting.primitives import plot_primitives
+    from gracenav.primitives import primitive_set
+
+    out = plot_primitives(primitive_set(d=args.d), args.out)
+    print(f"wrote {out}")
+    return 0
+
+
+def run_domain(args: argparse.Namespace) -> int:
+    """Run ``gracenav plot domain``."""
+    from gracenav.palette import load_palette
+    from gracenav.plotting.domains import plot_domain
+
+    pal = load_palette(args.file)
+    out = plot_domain(pal[args.name], args.out)
+    print(f"wrote {out}")
+    return 0
