@@ -22,9 +22,11 @@ a robot must not plan through space nobody has seen.
 from __future__ import annotations
 
 import itertools
+import json
 import math
 import numbers
 import os
+import re
 import struct
 import zlib
 from collections.abc import Mapping, Sequence
@@ -1242,16 +1244,20 @@ def save_ros_map(
     if world_map.unknown is not None:
         img[world_map.unknown] = 205
     write_pgm(image_path, img[::-1], maxval=255, binary=binary)
-    doc = {
-        "image": image_path.name,
-        "mode": "trinary",
-        "resolution": world_map.resolution,
-        "origin": [float(world_map.origin[0]), float(world_map.origin[1]), 0.0],
-        "negate": 0,
-        "occupied_thresh": 0.65,
-        "free_thresh": 0.196,
-    }
-    atomic_write_text(yaml_path, yaml.safe_dump(doc, sort_keys=False))
+    name = image_path.name
+    if not re.fullmatch(r"[A-Za-z0-9_.+-]+", name):
+        name = json.dumps(name)  # a JSON string is a valid YAML scalar
+    ox, oy = (float(v) for v in world_map.origin)
+    text = (
+        f"image: {name}\n"
+        "mode: trinary\n"
+        f"resolution: {world_map.resolution!r}\n"
+        f"origin: [{ox!r}, {oy!r}, 0.0]\n"
+        "negate: 0\n"
+        "occupied_thresh: 0.65\n"
+        "free_thresh: 0.196\n"
+    )
+    atomic_write_text(yaml_path, text)
     return image_path
 
 
