@@ -155,9 +155,8 @@ def closed_loop(
     noise (B or 1, T+1, 4); force (T, 3) world force on the body COM held over
     each tick; impulse (T+1, 3) world impulse on the body COM applied at a tick;
     jump (T+1, 8) state increment applied at a tick; tether (T, 3) rows
-    [active, v_x, v_y]: while active a horizontal spring-damper with
-    tether_gains [stiffness, damping] pulls the body COM toward an anchor that
-    starts at the COM when the tether becomes active and moves at (v_x, v_y); domain_center
+    [active, v_x, v_y]: while active a horizontal damper, tether_gains[0]
+    (N s/m), drags the body COM toward the velocity (v_x, v_y); domain_center
     (T+1, 4) and domain_shape (T+1, 4, 4) the monitored outer domain D'(t) (pass
     zero-size arrays for none); states_out (B, T+1, 8) and inputs_out (B, T+1, 2)
     when ``record``; summary_out (B, 6): [last tick reached, max |lean| (rad),
@@ -188,9 +187,7 @@ def closed_loop(
     f = np.zeros(3)
     zero4 = np.zeros(4)
     dq = np.empty(4)
-    pos = np.empty(3)
     pv = np.empty(4)
-    anchor = np.zeros(2)
     for b in range(nb):
         x = x0[b].copy()
         max_lean = 0.0
@@ -263,27 +260,17 @@ def closed_loop(
                 f[1] = 0.0
                 f[2] = 0.0
             tethered = use_tether and tether[n, 0] > 0.0
-            if tethered and (n == 0 or tether[n - 1, 0] == 0.0):
-                com_position(c_plant, x[:4], pos)
-                anchor[0] = pos[0]
-                anchor[1] = pos[1]
             for _s in range(substeps):
                 if tethered:
-                    com_position(c_plant, x[:4], pos)
                     com_jacobian(c_plant, x[:4], wj)
                     for i in range(2):
                         vel = 0.0
                         for j in range(4):
                             vel += wj[i, j] * x[4 + j]
-                        f[i] = (
-                            (force[n, i] if use_force else 0.0)
-                            + tether_gains[0] * (anchor[i] - pos[i])
-                            + tether_gains[1] * (tether[n, 1 + i] - vel)
+                        f[i] = (force[n, i] if use_force else 0.0) + tether_gains[0] * (
+                            tether[n, 1 + i] - vel
                         )
                 _rk4(c_plant, fr_plant, x, tau, f, h, wm, wh, wj, wr, k1, k2, k3, k4, xt)
-                if tethered:
-                    anchor[0] += h * tether[n, 1]
-                    anchor[1] += h * tether[n, 2]
         summary_out[b, 0] = last
         summary_out[b, 1] = max_lean
         summary_out[b, 2] = max_tau

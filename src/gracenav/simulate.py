@@ -156,16 +156,15 @@ class StateJump:
 class Drag:
     """The robot held at its body and moved along ``velocity`` (m/s) over [start_time, end_time).
 
-    Modelled as a horizontal spring-damper on the body centre of mass toward an
-    anchor that starts at the body's position and moves at ``velocity``
-    (stiffness in N/m, damping in N s/m).
+    Modelled as a strong horizontal damper on the body centre of mass toward
+    ``velocity``: F = damping · (v − ṗ_COM) (damping in N s/m), which makes
+    the body follow the hand's velocity whatever the controller does.
     """
 
     start_time: float
     end_time: float
     velocity: tuple[float, float]
-    stiffness: float = 3000.0
-    damping: float = 600.0
+    damping: float = 1000.0
 
 
 Disturbance = Push | BodyForce | StateJump | Drag
@@ -298,7 +297,7 @@ def _disturbance_arrays(
     impulse = np.zeros((0, 3))
     jump = np.zeros((0, 8))
     tether = np.zeros((0, 3))
-    gains = np.zeros(2)
+    gains = np.zeros(1)
     for d in disturbances:
         if isinstance(d, Push):
             if impulse.shape[0] == 0:
@@ -320,9 +319,9 @@ def _disturbance_arrays(
         elif isinstance(d, Drag):
             if tether.shape[0] == 0:
                 tether = np.zeros((max(nt, 1), 3))
-            elif np.any(gains != (d.stiffness, d.damping)):
-                raise ConfigError("all drags of one simulation must share stiffness and damping")
-            gains = np.array([d.stiffness, d.damping], dtype=float)
+            elif gains[0] != d.damping:
+                raise ConfigError("all drags of one simulation must share the same damping")
+            gains = np.array([d.damping], dtype=float)
             a = _tick(d.start_time, dt, nt, "drag start")
             b = _tick(d.end_time, dt, nt, "drag end")
             tether[a:b, 0] = 1.0
@@ -560,7 +559,6 @@ def _simulate_mujoco(
     max_lean = max_tau = max_dom = 0.0
     saturated = 0
     exit_tick = -1
-    anchor = np.zeros(2)
     last = nt
     for n in range(nt + 1):
         x = plant.get_state()
@@ -601,12 +599,8 @@ def _simulate_mujoco(
         if impulse.shape[0] and np.any(impulse[n] != 0.0):
             f += impulse[n] / dt
         if tether.shape[0] and tether[n, 0] > 0.0:
-            com = model.com_position(x[:4])
-            if n == 0 or tether[n - 1, 0] == 0.0:
-                anchor = com[:2].copy()
             vel = model.com_jacobian(x[:4]) @ x[4:]
-            f[:2] += tgains[0] * (anchor - com[:2]) + tgains[1] * (tether[n, 1:3] - vel[:2])
-            anchor = anchor + dt * tether[n, 1:3]
+            f[:2] += tgains[0] * (tether[n, 1:3] - vel[:2])
         plant.step(tau, options.substeps, body_force=f)
     return SimulationResult(
         time=np.arange(last + 1, dtype=np.float64) * np.float64(dt),
