@@ -354,3 +354,16 @@ def test_planar_accelerations_match_planar_model(plane: str) -> None:
         want = planar.accelerations(qp, qdp, tau_p)
         assert np.max(np.abs(got[[i, 2 + i]] - want)) < TOL["locked"] * np.max(np.abs(want))
         np.testing.assert_allclose(got[[1 - i, 3 - i]], 0.0, atol=1e-9)
+
+
+def test_locked_passive_motion_conserves_the_model_energy() -> None:
+    """Without friction or input, Ballbot3D's energy along the MuJoCo motion is constant."""
+    p = BallbotParams().without_friction()
+    model = Ballbot3D(p)
+    plant = MujocoBallbot(p)
+    plant.set_state(X0_3D)
+    e0 = model.energy(X0_3D[:4], X0_3D[4:])
+    scale = p.body_mass * p.gravity * p.body_com_height  # J
+    for _ in range(16):
+        x = plant.step([0.0, 0.0], 32)
+        assert abs(model.energy(x[:4], x[4:]) - e0) < 1e-6 * scale
