@@ -44,7 +44,8 @@ class Ballbot3D:
 
     All methods are vectorised over any leading batch shape ``...``: ``q`` and
     ``qd`` have shape (..., 4) and ``tau`` shape (..., 2), broadcast against
-    each other where several are given.
+    each other where several are given. An array whose last axis has the
+    wrong length raises ValueError.
 
     Parameters
     ----------
