@@ -13,19 +13,19 @@ from pathlib import Path
 
 import numpy as np
 
-from gracenav.maps import Circle, Rectangle, WorldMap, load_map, save_ros_map
+from gracenav.maps import Circle, Rectangle, Shape, WorldMap, load_map, save_ros_map
 
 
 def build() -> WorldMap:
     """The example lab as a map with an unknown border."""
-    walls = [
+    walls: list[Shape] = [
         Rectangle((0.0, 0.0), (3.0, 0.1)),
         Rectangle((0.0, 2.9), (3.0, 3.0)),
         Rectangle((0.0, 0.0), (0.1, 3.0)),
         Rectangle((2.9, 0.0), (3.0, 1.8)),  # east wall with a 0.8 m doorway
         Rectangle((2.9, 2.6), (3.0, 3.0)),
     ]
-    furniture = [Rectangle((0.6, 1.9), (1.6, 2.4)), Circle((2.0, 1.0), 0.15)]
+    furniture: list[Shape] = [Rectangle((0.6, 1.9), (1.6, 2.4)), Circle((2.0, 1.0), 0.15)]
     room = WorldMap.from_shapes([[-0.5, -0.5], [3.5, 3.5]], [*walls, *furniture], name="lab")
     centers = room.cell_centers()
     inside = np.all((centers >= 0.0) & (centers <= 3.0), axis=-1)

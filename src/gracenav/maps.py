@@ -241,10 +241,6 @@ def _polygon_defect(pts: FloatArray) -> str | None:
     short = np.flatnonzero(np.hypot(edge[:, 0], edge[:, 1]) == 0.0)
     if short.size:
         return f"points {short[0]} and {(short[0] + 1) % n} coincide (zero-length edge)"
-    area2 = float(np.sum(pts[:, 0] * nxt[:, 1] - nxt[:, 0] * pts[:, 1]))
-    scale = float(np.max(np.abs(pts - pts.mean(axis=0)))) ** 2
-    if abs(area2) <= 1e-12 * max(scale, 1e-300):
-        return "it has zero area (all points on one line)"
     # Adjacent edges overlap when the second folds back along the first.
     nxt_edge = np.roll(edge, -1, axis=0)
     cross = edge[:, 0] * nxt_edge[:, 1] - edge[:, 1] * nxt_edge[:, 0]
@@ -262,6 +258,10 @@ def _polygon_defect(pts: FloatArray) -> str | None:
         hit = np.flatnonzero(_segments_intersect(pts[i], nxt[i], pts[j], nxt[j]))
         if hit.size:
             return f"edges {i[hit[0]]} and {j[hit[0]]} intersect"
+    area2 = float(np.sum(pts[:, 0] * nxt[:, 1] - nxt[:, 0] * pts[:, 1]))
+    scale = float(np.max(np.abs(pts - pts.mean(axis=0)))) ** 2
+    if abs(area2) <= 1e-12 * max(scale, 1e-300):
+        return "it has zero area (all points on one line)"
     return None
 
 
@@ -448,7 +448,8 @@ class WorldMap:
         bounds : array_like, shape (2, 2)
             ((x_min, y_min), (x_max, y_max)), m; each side a whole number of cells.
         shapes : sequence of Shape
-            Obstacles; each must lie entirely inside ``bounds``.
+            Obstacles; each must lie entirely inside ``bounds`` and contain at least one
+            cell centre (an obstacle thinner than a cell could otherwise vanish).
         resolution : float
             Cell side (m), > 0.
         name, source : str
@@ -479,7 +480,7 @@ class WorldMap:
             cells = span / res
             if not cells <= _MAX_CELLS:
                 raise MapError(
-                    f"{where}: the map would be {cells:g} cells {label}wise (limit "
+                    f"{where}: the map would be {cells:g} cells along its {label} (limit "
                     f"{_MAX_CELLS} cells in all); use a coarser 'resolution' or smaller 'bounds'"
                 )
             k = round(cells)
@@ -513,7 +514,14 @@ class WorldMap:
                     f"{sy1:g}) m) extends outside the map bounds ({b[0, 0]:g}, {b[0, 1]:g})–"
                     f"({b[1, 0]:g}, {b[1, 1]:g}) m; move or shrink it, or enlarge 'bounds'"
                 )
-        occupied = _rasterise(shapes, b[0], res, ny, nx)
+        occupied, empty = _rasterise(shapes, b[0], res, ny, nx)
+        if empty:
+            k = empty[0]
+            raise MapError(
+                f"{where}: 'obstacles[{k}]' ({type(shapes[k]).__name__.lower()}) contains no "
+                f"cell centre at 'resolution' {res:g} m, so it would vanish from the map; use "
+                "a finer resolution or enlarge the obstacle"
+            )
         return cls(b[0].copy(), res, occupied, name=name, source=source, shapes=shapes)
 
     # -- geometry -----------------------------------------------------------------------
@@ -611,11 +619,12 @@ class WorldMap:
     def clearance(self, points: ArrayLike) -> FloatArray:
         """Distance from each point to the nearest occupied cell or the map edge.
 
-        The nearest occupied cell of the point's own cell (exact Euclidean distance
-        transform of the grid, map edge as an obstacle) is found once per map; the
-        returned value is the exact distance from the point to that cell's square, or to
-        the map edge if nearer. It differs from the distance to the true (unrasterised)
-        obstacles by less than one cell.
+        For each of the four cells whose centres surround the point, its nearest
+        occupied cell (exact Euclidean distance transform of the grid, map edge as an
+        obstacle) is found once per map; the returned value is the exact distance from
+        the point to the nearest of those cells' squares, or to the map edge if nearer.
+        It differs from the distance to the true (unrasterised) obstacles by less than one
+        cell.
 
         Parameters
         ----------
@@ -632,19 +641,24 @@ class WorldMap:
         flat = p.reshape(-1, 2)
         _, nearest = self._clearance_data()
         iy, ix, inside = self._cells(flat)
-        jy = nearest[0, iy + 1, ix + 1].astype(float) - 1.0
-        jx = nearest[1, iy + 1, ix + 1].astype(float) - 1.0
+        res = self.resolution
         x = np.where(inside, flat[:, 0], self.origin[0])
         y = np.where(inside, flat[:, 1], self.origin[1])
-        res = self.resolution
-        bx0 = self.origin[0] + jx * res
-        by0 = self.origin[1] + jy * res
-        dx = np.maximum(np.maximum(bx0 - x, x - (bx0 + res)), 0.0)
-        dy = np.maximum(np.maximum(by0 - y, y - (by0 + res)), 0.0)
+        # Padded indices of the 2 × 2 cells whose centres surround each point.
+        ky = np.floor((y - self.origin[1]) / res - 0.5).astype(np.int64) + 1
+        kx = np.floor((x - self.origin[0]) / res - 0.5).astype(np.int64) + 1
+        best = np.full(len(flat), np.inf)
+        for oy, ox in ((0, 0), (0, 1), (1, 0), (1, 1)):
+            jy = nearest[0, ky + oy, kx + ox] - 1  # nearest occupied cell, unpadded index
+            jx = nearest[1, ky + oy, kx + ox] - 1
+            bx0 = self.origin[0] + jx * res
+            by0 = self.origin[1] + jy * res
+            dx = np.maximum(np.maximum(bx0 - x, x - (bx0 + res)), 0.0)
+            dy = np.maximum(np.maximum(by0 - y, y - (by0 + res)), 0.0)
+            best = np.minimum(best, np.hypot(dx, dy))
         (xmin, ymin), (xmax, ymax) = self.bounds
         edge = np.minimum(np.minimum(x - xmin, xmax - x), np.minimum(y - ymin, ymax - y))
-        out = np.where(inside, np.minimum(np.hypot(dx, dy), edge), 0.0)
-        out = np.where(inside & self.occupied[iy, ix], 0.0, out)
+        out = np.where(inside & ~self.occupied[iy, ix], np.minimum(best, edge), 0.0)
         return np.maximum(out, 0.0).reshape(p.shape[:-1])
 
     def __repr__(self) -> str:
@@ -659,22 +673,26 @@ class WorldMap:
 
 def _rasterise(
     shapes: Sequence[Shape], origin: FloatArray, res: float, ny: int, nx: int
-) -> BoolArray:
-    """Occupancy grid (ny, nx): True where a cell centre is inside some shape."""
+) -> tuple[BoolArray, list[int]]:
+    """Occupancy grid (ny, nx), True where a cell centre is inside some shape, and the
+    indices of shapes that contain no cell centre."""
     occ = np.zeros((ny, nx), dtype=bool)
-    for s in shapes:
+    empty = []
+    for k, s in enumerate(shapes):
         (x0, y0), (x1, y1) = s.bounds
         # Cells whose centres may fall in the bounding box (one cell of slack each side).
         j0 = max(math.floor((x0 - origin[0]) / res - 0.5), 0)
         j1 = min(math.ceil((x1 - origin[0]) / res + 0.5), nx)
         i0 = max(math.floor((y0 - origin[1]) / res - 0.5), 0)
         i1 = min(math.ceil((y1 - origin[1]) / res + 0.5), ny)
-        if j1 <= j0 or i1 <= i0:
-            continue
         xs = origin[0] + (np.arange(j0, j1) + 0.5) * res
         ys = origin[1] + (np.arange(i0, i1) + 0.5) * res
-        occ[i0:i1, j0:j1] |= s.contains(np.stack(np.meshgrid(xs, ys), axis=-1))
-    return occ
+        inside = s.contains(np.stack(np.meshgrid(xs, ys), axis=-1))
+        if not inside.any():
+            empty.append(k)
+            continue
+        occ[i0:i1, j0:j1] |= inside
+    return occ, empty
 
 
 # ----------------------------------------------------------------------------------------
@@ -1355,7 +1373,8 @@ def office_map(
     size : float
         Side of the square (m), >= 14 and a whole number of cells.
     resolution : float
-        Cell side (m), > 0.
+        Cell side (m), > 0 and at most 0.1 (the 0.1 m partition walls must cover a row
+        of cell centres).
     seed : int
         Seed of the layout's random generator.
 
