@@ -1,0 +1,1 @@
+"""Figures. Every function imports matplotlib lazily and draws with the Agg backend."""

@@ -1,0 +1,246 @@
+"""Tests of the optimal shape trajectory planner."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from gracenav.errors import ConfigError
+from gracenav.model.ballbot3d import Ballbot3D
+from gracenav.params import BallbotParams
+from gracenav.shape_planner import (
+    NonicReference,
+    ShapePlannerOptions,
+    ShapePlannerResult,
+    ShapePlannerStatus,
+    flat_output_gain,
+    flat_output_lengths,
+    plan_shape_trajectory,
+)
+
+PARAMS = BallbotParams()
+H = 1.0 / 1024.0
+
+# (duration, start velocity, displacement, end velocity): straight, diagonal, turn, U-turn
+CASES = {
+    "rest_to_rest_x": (3.875, (0.0, 0.0), (1.0, 0.0), (0.0, 0.0)),
+    "rest_to_cruise_diagonal": (3.5, (0.0, 0.0), (1.0, 1.0), (0.35, 0.35)),
+    "turn_left_90": (2.375, (0.5, 0.0), (0.5, 0.5), (0.0, 0.5)),
+    "u_turn": (3.375, (0.5, 0.0), (0.0, 0.5), (-0.5, 0.0)),
+}
+
+
+def _reference(case: str) -> NonicReference:
+    duration, v0, disp, v1 = CASES[case]
+    return NonicReference.between(duration, (0.0, 0.0), v0, disp, v1)
+
+
+@pytest.fixture(scope="module")
+def plans() -> dict[str, ShapePlannerResult]:
+    return {case: plan_shape_trajectory(_reference(case), PARAMS) for case in CASES}
+
+
+def _ticks(duration: float) -> np.ndarray:
+    return np.arange(round(duration / H) + 1) * H
+
+
+# -- the desired trajectory ------------------------------------------------------------
+def test_nonic_boundary_conditions() -> None:
+    ref = NonicReference.between(2.5, (0.1, -0.2), (0.5, 0.0), (1.1, 0.3), (0.0, -0.5))
+    ends = np.array([0.0, 2.5])
+    np.testing.assert_allclose(ref.value(ends), [[0.1, -0.2], [1.1, 0.3]], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ref.value(ends, 1), [[0.5, 0.0], [0.0, -0.5]], rtol=0, atol=1e-12)
+    for order in (2, 3, 4):
+        np.testing.assert_allclose(ref.value(ends, order), 0.0, rtol=0, atol=1e-10)
+    # derivatives are consistent with finite differences of the position
+    t = np.linspace(0.2, 2.3, 7)
+    fd = (ref.value(t + 1e-5) - ref.value(t - 1e-5)) / 2e-5
+    np.testing.assert_allclose(fd, ref.value(t, 1), rtol=0, atol=1e-8)
+    # a rest-to-rest nonic peaks at 9.37 D / T^2 in acceleration (DESIGN.md 5)
+    r2r = NonicReference.between(3.0, (0, 0), (0, 0), (1.0, 0.0), (0, 0))
+    peak = np.max(np.abs(r2r.value(np.linspace(0, 3.0, 30001), 2)[:, 0]))
+    assert peak == pytest.approx(9.37 * 1.0 / 9.0, rel=2e-3)
+
+
+def test_flat_output_constants_match_the_design_values() -> None:
+    # L = r_w (γ + β)/(α + β) ≈ 0.986 m for I_b = 12.59 (the y axis uses I_xx = 12.59)
+    lengths = flat_output_lengths(PARAMS)
+    assert lengths[1] == pytest.approx(0.986, abs=1e-3)
+    assert lengths[0] < lengths[1]  # I_yy = 12.48 < I_xx
+    # steady lean at 0.5 m/s² on the linearised model: atan-free small-angle value 3.40°
+    kappa = flat_output_gain(PARAMS)
+    assert math.degrees(0.5 / kappa) == pytest.approx(3.40, abs=0.01)
+
+
+# -- analytic truth: the linearised model ------------------------------------------------
+@pytest.mark.parametrize("case", ["rest_to_rest_x", "turn_left_90"])
+def test_linear_model_matches_the_closed_form_flat_output_solution(case: str) -> None:
+    ref = _reference(case)
+    res = plan_shape_trajectory(ref, PARAMS, model="linear")
+    assert res.status is ShapePlannerStatus.CONVERGED
+    t = _ticks(ref.duration)
+    s = res.trajectory.sample(t)
+    kappa = flat_output_gain(PARAMS)
+    lean = ref.value(t, 2) / kappa  # φ = ÿ/κ
+    lean_rate = ref.value(t, 3) / kappa
+    ball = ref.value(t) - flat_output_lengths(PARAMS) * lean  # x = y − L φ
+    np.testing.assert_allclose(s.states[:, 2:4], lean, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(s.states[:, 6:8], lean_rate, rtol=0, atol=1e-5)
+    np.testing.assert_allclose(s.position[:, 0:2], ball, rtol=0, atol=1e-7)
+    # the first Gauss-Newton step is already the answer for the linear model
+    assert res.iterations <= 3
+
+
+def test_3d_model_reduces_to_the_planar_model_in_one_plane() -> None:
+    ref = NonicReference.between(2.875, (0, 0), (0, 0), (1.0, 0.0), (0.5, 0.0))
+    a = plan_shape_trajectory(ref, PARAMS, model="3d")
+    b = plan_shape_trajectory(ref, PARAMS, model="planar")
+    np.testing.assert_allclose(a.trajectory.theta, b.trajectory.theta, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(
+        a.trajectory.coefficients, b.trajectory.coefficients, rtol=0, atol=1e-10
+    )
+    np.testing.assert_allclose(a.trajectory.theta[:, 1], 0.0, rtol=0, atol=1e-14)
+
+
+# -- feasibility on the 3D model --------------------------------------------------------
+@pytest.mark.parametrize("case", list(CASES))
+def test_samples_satisfy_the_3d_equations_of_motion(
+    plans: dict[str, ShapePlannerResult], case: str
+) -> None:
+    res = plans[case]
+    assert res.converged
+    model = Ballbot3D(PARAMS)
+    rng = np.random.default_rng(7)
+    duration = res.trajectory.duration
+    t = np.concatenate([_ticks(duration), rng.uniform(0.0, duration, 400)])
+    s = res.trajectory.sample(t)
+    q, qd = s.states[:, :4], s.states[:, 4:]
+    lhs = np.einsum("nij,nj->ni", model.mass_matrix(q), s.accelerations) + model.bias(q, qd)
+    lhs[:, :2] += model.friction(qd) - s.inputs
+    assert np.max(np.abs(lhs)) < 1e-6  # N m
+    np.testing.assert_allclose(
+        model.accelerations(q, qd, s.inputs), s.accelerations, rtol=0, atol=1e-8
+    )
+    assert res.dynamics_residual < 1e-9
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_states_are_the_integrals_of_the_accelerations(
+    plans: dict[str, ShapePlannerResult], case: str
+) -> None:
+    traj = plans[case].trajectory
+    t = np.linspace(0.01, traj.duration - 0.01, 300)
+    errors = []
+    for delta in (H, H / 4):
+        s, sp, sm = traj.sample(t), traj.sample(t + delta), traj.sample(t - delta)
+        rate = (sp.states[:, :4] - sm.states[:, :4]) / (2 * delta)
+        acc = (sp.states[:, 4:] - sm.states[:, 4:]) / (2 * delta)
+        e = max(
+            float(np.max(np.abs(rate - s.states[:, 4:]))),
+            float(np.max(np.abs(acc - s.accelerations))),
+        )
+        # central differences: error O(delta²) times third/fourth derivatives (< 200 rad/s⁴)
+        assert e < 200.0 * delta**2
+        errors.append(e)
+    assert errors[1] < errors[0] / 8  # second-order convergence: the samples are consistent
+    assert plans[case].integration_error < 1e-10
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_ends_are_exact_trims(plans: dict[str, ShapePlannerResult], case: str) -> None:
+    res = plans[case]
+    ref = _reference(case)
+    duration, v0, disp, v1 = CASES[case]
+    s = res.trajectory.sample([0.0, duration])
+    r = PARAMS.ball_radius
+    np.testing.assert_allclose(s.position[0, 0:2], (0.0, 0.0), rtol=0, atol=1e-14)
+    np.testing.assert_allclose(s.position[0, 2:4], v0, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(s.position[1, 0:2], disp, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(s.position[1, 2:4], v1, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(s.position[:, 4:6], 0.0, rtol=0, atol=1e-9)  # ball acc
+    np.testing.assert_allclose(s.states[:, 2:4], 0.0, rtol=0, atol=1e-15)  # lean
+    np.testing.assert_allclose(s.states[:, 6:8], 0.0, rtol=0, atol=1e-13)  # lean rate
+    np.testing.assert_allclose(s.accelerations, 0.0, rtol=0, atol=1e-9)  # lean and ball acc
+    # ball angles of the end trim: θ = x / r_w
+    np.testing.assert_allclose(s.states[1, 0:2], np.asarray(disp) / r, rtol=0, atol=1e-8)
+    assert res.end_error < 1e-9
+    assert ref.duration == duration
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_tracking_error_is_bounded(plans: dict[str, ShapePlannerResult], case: str) -> None:
+    res = plans[case]
+    # Bound reached: about 2e-8 m; DESIGN.md asks for 0.1 mm. Assert 1 µm.
+    assert res.tracking_max < 1e-6
+    assert res.tracking_rms <= res.tracking_max
+    # the ball itself first rolls back / overshoots by several cm (non-minimum phase)
+    assert 0.01 < res.ball_max < 0.15
+    # direct check of the reported figure from samples at the nodes
+    traj = res.trajectory
+    t = _ticks(traj.duration)
+    s = traj.sample(t)
+    flat = s.position[:, :2] + flat_output_lengths(PARAMS) * s.states[:, 2:4]
+    err = np.linalg.norm(flat - _reference(case).value(t), axis=1)
+    assert float(np.max(err)) == pytest.approx(res.tracking_max, rel=1e-6, abs=1e-12)
+
+
+def test_peak_lean_and_torque_are_reported_from_the_trajectory(
+    plans: dict[str, ShapePlannerResult],
+) -> None:
+    res = plans["rest_to_rest_x"]
+    s = res.trajectory.sample(_ticks(res.trajectory.duration))
+    tilt = np.arccos(np.cos(s.states[:, 2]) * np.cos(s.states[:, 3]))
+    assert res.peak_lean == pytest.approx(float(np.max(tilt)), rel=1e-9)
+    assert res.peak_torque == pytest.approx(float(np.max(np.abs(s.inputs))), rel=1e-9)
+    # 1 m rest-to-rest in 3.875 s: about 4.2° and 33 N m (mostly friction)
+    assert math.degrees(res.peak_lean) == pytest.approx(4.24, abs=0.05)
+    assert 25.0 < res.peak_torque < 40.0
+
+
+# -- failure paths ---------------------------------------------------------------------
+def test_iteration_limit_is_reported() -> None:
+    ref = _reference("turn_left_90")
+    res = plan_shape_trajectory(ref, PARAMS, options=ShapePlannerOptions(max_iterations=1))
+    assert res.status is ShapePlannerStatus.MAX_ITERATIONS
+    assert not res.converged
+    assert res.end_error > 1e-9
+
+
+def test_duration_must_be_a_whole_number_of_steps() -> None:
+    ref = NonicReference.between(2.0001, (0, 0), (0, 0), (0.5, 0), (0, 0))
+    with pytest.raises(ConfigError, match="whole number of integration steps"):
+        plan_shape_trajectory(ref, PARAMS)
+
+
+def test_reference_must_start_and_end_at_trims() -> None:
+    class Ramp:
+        duration = 1.0
+
+        def value(self, t: np.ndarray, order: int = 0) -> np.ndarray:
+            t = np.atleast_1d(np.asarray(t, dtype=float))
+            y = [0.5 * t**2, t, np.ones_like(t)][order] if order < 3 else np.zeros_like(t)
+            return np.stack([y, np.zeros_like(t)], axis=1)
+
+    with pytest.raises(ConfigError, match="start and end at trims"):
+        plan_shape_trajectory(Ramp(), PARAMS)
+
+
+def test_invalid_options_and_model_are_rejected() -> None:
+    with pytest.raises(ConfigError, match="knot_spacing"):
+        ShapePlannerOptions(knot_spacing=-0.1)
+    with pytest.raises(ConfigError, match="max_iterations"):
+        ShapePlannerOptions(max_iterations=0)
+    with pytest.raises(ConfigError, match="model must be one of"):
+        plan_shape_trajectory(_reference("u_turn"), PARAMS, model="4d")  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match="positive"):
+        NonicReference.between(0.0, (0, 0), (0, 0), (1, 0), (0, 0))
+
+
+def test_sampling_outside_the_duration_is_rejected(
+    plans: dict[str, ShapePlannerResult],
+) -> None:
+    traj = plans["u_turn"].trajectory
+    with pytest.raises(ConfigError, match="must lie in"):
+        traj.sample([traj.duration + 0.01])
