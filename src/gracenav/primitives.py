@@ -527,6 +527,9 @@ def _trims(d: float, params: BallbotParams, options: PrimitiveSetOptions) -> lis
     return out
 
 
+_SCREEN_MARGIN = 0.03
+
+
 def _maneuver_name(start: str, end: str, cells: tuple[int, int]) -> str:
     return f"{start}_to_{end}_{cells[0]}_{cells[1]}"
 
@@ -610,45 +613,26 @@ def _plan_maneuver(
     def ref_at(duration: float) -> NonicReference:
         return NonicReference.between(duration, zero, v0, disp, v1)
 
-    estimates: dict[float, tuple[bool, float]] = {}
-    for duration in grid:
-        ref = ref_at(duration)
-        if not _reference_ok(ref, v0, v1, options):
-            estimates[duration] = (False, math.inf)
-            continue
-        lean, tau = _linear_estimate(ref, params)
-        estimates[duration] = (True, max(lean / limit_lean, tau / limit_tau))
+    def candidates() -> Iterator[float]:
+        # Screen the grid with the linearised model's flat-output solution (cheap); plan
+        # the 3D model from the shortest duration whose estimate is within a small margin
+        # of the limits (the 3D model's peaks differ from the estimate by < 1 %).
+        for duration in grid:
+            ref = ref_at(duration)
+            if not _reference_ok(ref, v0, v1, options):
+                continue
+            lean, tau = _linear_estimate(ref, params)
+            if max(lean / limit_lean, tau / limit_tau) <= 1.0 + _SCREEN_MARGIN:
+                yield duration
 
-    first = next(
-        (i for i, T in enumerate(grid) if estimates[T][0] and estimates[T][1] <= 1.0), None
-    )
-    if first is None:
-        # the linear estimate may be slightly pessimistic: try the nearly feasible ones
-        first = next(
-            (i for i, T in enumerate(grid) if estimates[T][0] and estimates[T][1] <= 1.03), None
-        )
-        if first is None:
-            return None
     chosen: tuple[float, tuple[ShapePlannerResult, ShapePlannerResult]] | None = None
-    for i in range(first, len(grid)):
-        duration = grid[i]
-        if not estimates[duration][0]:
-            continue
+    for duration in candidates():
         pair = _plan_pair(ref_at(duration), v0, disp, v1, params, options)
         if pair is not None:
             chosen = (duration, pair)
             break
     if chosen is None:
         return None
-    # one step shorter, if the linear estimate says it is close to feasible
-    i = grid.index(chosen[0])
-    if i > 0:
-        shorter = grid[i - 1]
-        ok, ratio = estimates[shorter]
-        if ok and ratio <= 1.03 and i - 1 >= first - 1:
-            pair = _plan_pair(ref_at(shorter), v0, disp, v1, params, options)
-            if pair is not None:
-                chosen = (shorter, pair)
     duration, (res0, res1) = chosen
     return Maneuver(
         name=_maneuver_name(start, end, cells),
@@ -755,8 +739,10 @@ def _decode(
         with np.load(io.BytesIO(data), allow_pickle=False) as z:
             arrays = {k: z[k] for k in z.files}
         meta = json.loads(arrays.pop("__meta__").tobytes().decode())
-    except (OSError, ValueError, KeyError, zipfile.BadZipFile, UnicodeDecodeError, EOFError) as exc:
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError) as exc:
         raise CacheError(f"unreadable primitive cache: {exc}") from None
+    if not isinstance(meta, dict):
+        raise CacheError("primitive cache metadata is not a mapping")
     if meta.get("key") != key or meta.get("version") != CODE_VERSION:
         raise CacheError("primitive cache key does not match")
     if meta.get("digest") != _digest(arrays):
@@ -796,7 +782,7 @@ def _decode(
                 )
             )
         return PrimitiveSet(d, params, options, tuple(prims), tuple(meta["omitted"]))
-    except (KeyError, TypeError, ValueError, IndexError) as exc:
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
         raise CacheError(f"malformed primitive cache: {exc}") from None
 
 

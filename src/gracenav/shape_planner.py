@@ -512,6 +512,19 @@ class ShapeTrajectory:
     _spline: BSpline = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        n = round(self.duration / self.step)
+        for name in ("knots", "coefficients", "theta", "theta_dot", "theta_ddot"):
+            a = np.asarray(getattr(self, name), dtype=np.float64)
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+        if (
+            self.theta.shape != (n + 1, 2)
+            or self.theta_dot.shape != self.theta.shape
+            or (self.theta_ddot.shape != self.theta.shape)
+        ):
+            raise ConfigError(f"node arrays must have shape ({n + 1}, 2)")
+        if self.coefficients.shape != (self.knots.shape[0] - _DEGREE - 1, 2):
+            raise ConfigError("coefficients do not match the knots")
         object.__setattr__(self, "_spline", BSpline(self.knots, self.coefficients, _DEGREE))
 
     def lean(self, t: ArrayLike, order: int = 0) -> FloatArray:
