@@ -636,7 +636,7 @@ class _Basis:
     weights: FloatArray  # (N+1,): trapezoid weights / t_f
 
 
-@functools.lru_cache(maxsize=64)
+@functools.lru_cache(maxsize=4)  # a few MB each; the 0° and 90° plans share one
 def _basis(n_steps: int, step: float, knot_spacing: float) -> _Basis:
     duration = n_steps * step
     n_int = max(1, round(duration / knot_spacing) - 1)
