@@ -14,7 +14,14 @@ from numpy.typing import ArrayLike, NDArray
 
 from gracenav.errors import ConfigError
 
-__all__ = ["EllipsoidalDomain", "isotropic_shape", "rotation_2d", "rotation_4d", "sphere_points"]
+__all__ = [
+    "EllipsoidalDomain",
+    "correlated_shape",
+    "isotropic_shape",
+    "rotation_2d",
+    "rotation_4d",
+    "sphere_points",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -29,6 +36,34 @@ def isotropic_shape(position_radius: float, velocity_radius: float) -> FloatArra
         )
     rp, rv = 1.0 / position_radius**2, 1.0 / velocity_radius**2
     return np.diag([rp, rp, rv, rv])
+
+
+def correlated_shape(
+    position_extent: float, velocity_extent: float, correlation: float
+) -> FloatArray:
+    """Shape matrix (4, 4) of a domain with the given extents and position-velocity coupling.
+
+    The domain is {p : pᵀ P p <= 1} with P = (Σ ⊗ I₂)⁻¹ in the ordering
+    (x, y, ẋ, ẏ), where Σ = [[e_p², r e_p e_v], [r e_p e_v, e_v²]]: along each axis
+    the largest position deviation is e_p (m), the largest velocity deviation e_v
+    (m/s), and r ∈ (−1, 1) couples them (r < 0: a state ahead of the centre and
+    moving back toward it is inside). The shape is invariant under rotations of
+    the plane. ``correlation=0`` gives :func:`isotropic_shape`.
+    """
+    if not (position_extent > 0 and velocity_extent > 0):
+        raise ConfigError(
+            f"domain extents must be positive, got {position_extent!r} m and "
+            f"{velocity_extent!r} m/s"
+        )
+    if not -1.0 < correlation < 1.0:
+        raise ConfigError(f"domain correlation must lie in (-1, 1), got {correlation!r}")
+    cov = np.array(
+        [
+            [position_extent**2, correlation * position_extent * velocity_extent],
+            [correlation * position_extent * velocity_extent, velocity_extent**2],
+        ]
+    )
+    return np.asarray(np.kron(np.linalg.inv(cov), np.eye(2)), dtype=np.float64)
 
 
 def rotation_2d(angle: float) -> FloatArray:

@@ -30,6 +30,7 @@ from gracenav.errors import CacheError, ConfigError
 from gracenav.params import BallbotParams
 from gracenav.policies import (
     DomainRadii,
+    DomainShape,
     MotionPolicy,
     PrimitiveKind,
     SampledPrimitive,
@@ -47,6 +48,9 @@ __all__ = [
 ]
 
 PALETTE_FORMAT = 1
+#: Primitives are stored at every COARSE_STRIDE-th control tick (1/128 s) and
+#: rebuilt exactly enough (see SampledPrimitive.from_coarse) when loaded.
+COARSE_STRIDE = 8
 #: Bumped whenever the planner, controller or verification code changes results.
 ALGORITHM_VERSION = "1"
 
@@ -94,6 +98,9 @@ class Palette:
         The verified policies (first-quadrant primitives; instantiation rotates them).
     rejected : tuple of (str, VerificationReport)
         Primitives whose policy failed verification, with the failing report.
+    duplicates : tuple of (str, str)
+        Primitives left out because they are a rotation of another one (instantiation
+        rotates policies anyway), with what they duplicate.
     d : float
         Distance parameter of the primitive set (m).
     params : BallbotParams
@@ -105,6 +112,7 @@ class Palette:
 
     policies: tuple[MotionPolicy, ...]
     rejected: tuple[tuple[str, VerificationReport], ...]
+    duplicates: tuple[tuple[str, str], ...]
     d: float
     params: BallbotParams
     options: VerificationOptions
@@ -152,6 +160,7 @@ class Palette:
             },
             "policies": [],
             "rejected": [[n, dataclasses.asdict(r)] for n, r in self.rejected],
+            "duplicates": [list(x) for x in self.duplicates],
         }
         arrays: dict[str, np.ndarray] = {}
         for i, pol in enumerate(self.policies):
@@ -168,15 +177,16 @@ class Palette:
                     "start_radii": dataclasses.asdict(pol.start_radii),
                     "goal_radii": dataclasses.asdict(pol.goal_radii),
                     "outer_factors": list(pol.outer_factors),
+                    "correlation": pol.correlation,
                     "report": None if pol.report is None else dataclasses.asdict(pol.report),
                 }
             )
-            arrays[f"p{i}_states"] = prim.states
-            arrays[f"p{i}_inputs"] = prim.inputs
-            arrays[f"p{i}_position"] = prim.position
+            stride = COARSE_STRIDE if prim.num_ticks % COARSE_STRIDE == 0 else 1
+            header["policies"][-1]["stride"] = stride
+            arrays[f"p{i}_states"], arrays[f"p{i}_accelerations"] = prim.coarse(stride)
         arrays["header"] = np.frombuffer(json.dumps(header).encode(), dtype=np.uint8)
         buf = io.BytesIO()
-        np.savez_compressed(buf, **arrays)  # type: ignore[arg-type]
+        np.savez(buf, **arrays)  # type: ignore[arg-type]
         return buf.getvalue()
 
     def save(self, path: str | Path) -> Path:
@@ -205,23 +215,23 @@ class Palette:
                 max_lean_compensation=float(gp["max_lean_compensation"]),
                 friction_compensation=bool(gp["friction_compensation"]),
             )
-            opt = dict(header["options"])
-            opt["goal_radii"] = DomainRadii(**opt["goal_radii"])
-            options = VerificationOptions(**opt)
+            options = VerificationOptions(**header["options"])
             policies = []
             for i, meta in enumerate(header["policies"]):
-                prim = SampledPrimitive(
+                prim = SampledPrimitive.from_coarse(
+                    arrays[f"p{i}_states"],
+                    arrays[f"p{i}_accelerations"],
+                    int(meta["stride"]),
                     name=meta["name"],
                     kind=PrimitiveKind(meta["kind"]),
-                    duration=float(meta["duration"]),
                     dt=float(meta["dt"]),
                     displacement=np.asarray(meta["displacement"], dtype=float),
                     start_velocity=np.asarray(meta["start_velocity"], dtype=float),
                     end_velocity=np.asarray(meta["end_velocity"], dtype=float),
-                    states=arrays[f"p{i}_states"],
-                    inputs=arrays[f"p{i}_inputs"],
-                    position=arrays[f"p{i}_position"],
+                    params=params,
                 )
+                if abs(prim.duration - float(meta["duration"])) > 1e-9:
+                    raise ValueError(f"policy {meta['name']}: samples do not span its duration")
                 rep = meta["report"]
                 policies.append(
                     MotionPolicy(
@@ -233,6 +243,7 @@ class Palette:
                             float(meta["outer_factors"][0]),
                             float(meta["outer_factors"][1]),
                         ),
+                        correlation=float(meta["correlation"]),
                         report=None if rep is None else VerificationReport(**rep),
                     )
                 )
@@ -240,6 +251,7 @@ class Palette:
             return cls(
                 policies=tuple(policies),
                 rejected=rejected,
+                duplicates=tuple((str(a), str(b)) for a, b in header["duplicates"]),
                 d=float(header["d"]),
                 params=params,
                 options=options,
@@ -319,11 +331,27 @@ def load_palette(
     return pal
 
 
-def _size_one(args: tuple[SampledPrimitive, ControllerGains, VerificationOptions]) -> MotionPolicy:
+def _size_one(
+    args: tuple[SampledPrimitive, ControllerGains, VerificationOptions, DomainShape],
+) -> MotionPolicy:
     from gracenav.policies import size_policy
 
-    prim, gains, options = args
-    return size_policy(prim, gains, options)
+    prim, gains, options, shape = args
+    return size_policy(prim, gains, options, shape=shape)
+
+
+def _rotation_duplicate(prim: SampledPrimitive, earlier: Sequence[SampledPrimitive]) -> str | None:
+    """Name of an earlier primitive of which ``prim`` is a 90°, 180° or 270° rotation."""
+    for other in earlier:
+        if other.kind is not prim.kind or other.num_ticks != prim.num_ticks:
+            continue
+        for k in (1, 2, 3):
+            c, s = ((0.0, 1.0), (-1.0, 0.0), (0.0, -1.0))[k - 1]
+            rot = np.array([[c, -s], [s, c]])
+            pos = other.position.reshape(-1, 3, 2) @ rot.T
+            if np.allclose(pos.reshape(-1, 6), prim.position, rtol=0.0, atol=1e-9):
+                return f"{other.name} rotated by {90 * k}°"
+    return None
 
 
 def build_palette(
@@ -359,11 +387,21 @@ def build_palette(
     Palette
     """
     from gracenav._progress import Progress
+    from gracenav.policies import domain_shape
 
     params = params if params is not None else BallbotParams()
     gains = gains if gains is not None else design_gains(params)
     options = options if options is not None else VerificationOptions()
-    jobs = [(p, gains, options) for p in primitives]
+    shape = domain_shape(gains, horizon=options.shape_horizon)
+    unique: list[SampledPrimitive] = []
+    duplicates: list[tuple[str, str]] = []
+    for prim in primitives:
+        dup = _rotation_duplicate(prim, unique)
+        if dup is None:
+            unique.append(prim)
+        else:
+            duplicates.append((prim.name, dup))
+    jobs = [(p, gains, options, shape) for p in unique]
     results: list[MotionPolicy] = []
     with Progress(len(jobs), "verifying policies", enabled=progress) as bar:
         if processes <= 1:
@@ -386,6 +424,7 @@ def build_palette(
     return Palette(
         policies=passed,
         rejected=rejected,
+        duplicates=tuple(duplicates),
         d=d,
         params=params,
         options=options,

@@ -6,15 +6,26 @@ time-varying domain D(t) with an outer domain D'(t) ⊃ D(t), all in the 4D
 position state space (x, y, ẋ, ẏ). S = D(0) is the start domain and
 G = D(t_f) the goal domain.
 
-Domains here are round in position and in velocity (shape matrix
-diag(1/ρ_p², 1/ρ_p², 1/ρ_v², 1/ρ_v²)), so they are invariant under the 90°
-rotations of instantiation. Every policy of a palette shares one goal size
-G (``VerificationOptions.goal_radii``), and its start size S >= G is the
-largest that verification on the 3D model accepts (bisection on a scale).
-D(t) shrinks geometrically from S to G; D'(t) is D(t) enlarged by fixed
-factors in position and velocity. Because S >= G for every verified policy,
-condition (i) of the gracefully prepares relation, G₁ ⊂ S₂, holds for every
-pair whose primitives connect.
+Domain shape. Along each axis a domain couples position and velocity
+deviations: Σ = [[e_p², r e_p e_v], [r e_p e_v, e_v²]] ⊗ I₂ with extents e_p
+(m), e_v (m/s) and correlation r (:func:`gracenav.domains.correlated_shape`),
+so it is invariant under the 90° rotations of instantiation. The ratio
+e_v/e_p and r are the same for every policy and come from the closed loop
+(:func:`domain_shape`): the ellipse that the linearised closed loop, started
+with the lean at its planned value, contracts the most over the shortest trim
+(1 s). A round domain (r = 0, e_v = e_p·1/s) is not contracted at all in 1 s
+by this non-minimum-phase robot: its worst boundary point is still at 1.17×
+the radius, so trims could not be chained; the coupled ellipse shrinks to
+0.28× in the same time.
+
+Every policy of a palette shares one goal size G
+(``VerificationOptions.goal_position_extent``), and its start size S >= G is
+the largest that verification on the 3D model accepts (bisection on the
+scale S/G). D(t) shrinks geometrically from S to G; D'(t) is D(t) stretched
+by fixed factors in position and in velocity (the non-minimum-phase start of
+every correction briefly doubles a velocity error). Because S >= G for every
+verified policy and all share one shape, condition (i) of the gracefully
+prepares relation, G₁ ⊂ S₂, holds for every pair whose primitives connect.
 
 Verification (paper Sec. III-B) simulates the closed loop on the 3D model
 from points on the surface of S (every axis extreme plus a quasi-uniform set;
@@ -26,16 +37,17 @@ domain, and torque within the limit (no saturation).
 from __future__ import annotations
 
 import enum
-from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from gracenav.control import ControllerGains, design_gains
-from gracenav.domains import EllipsoidalDomain, isotropic_shape, sphere_points
+from gracenav.domains import EllipsoidalDomain, correlated_shape, sphere_points
 from gracenav.errors import ConfigError
+from gracenav.params import BallbotParams
 from gracenav.simulate import (
     DEFAULT_CONTROL_RATE,
     Reference,
@@ -45,11 +57,13 @@ from gracenav.simulate import (
 
 __all__ = [
     "DomainRadii",
+    "DomainShape",
     "MotionPolicy",
     "PrimitiveKind",
     "SampledPrimitive",
     "VerificationOptions",
     "VerificationReport",
+    "domain_shape",
     "size_policy",
     "verify_policy",
 ]
@@ -58,9 +72,14 @@ FloatArray = NDArray[np.float64]
 
 
 class _Sample(Protocol):
-    states: FloatArray
-    inputs: FloatArray
-    position: FloatArray
+    @property
+    def states(self) -> FloatArray: ...
+    @property
+    def accelerations(self) -> FloatArray: ...
+    @property
+    def inputs(self) -> FloatArray: ...
+    @property
+    def position(self) -> FloatArray: ...
 
 
 class PrimitiveLike(Protocol):
@@ -78,7 +97,7 @@ class PrimitiveLike(Protocol):
     def start_velocity(self) -> FloatArray: ...
     @property
     def end_velocity(self) -> FloatArray: ...
-    def sample(self, timepts: FloatArray) -> _Sample: ...
+    def sample(self, timepts: ArrayLike) -> _Sample: ...
 
 
 class PrimitiveKind(enum.Enum):
@@ -107,6 +126,8 @@ class SampledPrimitive:
         Reference ball velocity at t = 0 and t_f (m/s).
     states : ndarray, shape (T + 1, 8)
         Reference model states at the ticks, in the primitive's own frame.
+    accelerations : ndarray, shape (T + 1, 4)
+        Reference q̈ at the ticks (rad/s²).
     inputs : ndarray, shape (T + 1, 2)
         Feed-forward torques (N m), including the planned friction.
     position : ndarray, shape (T + 1, 6)
@@ -121,6 +142,7 @@ class SampledPrimitive:
     start_velocity: FloatArray
     end_velocity: FloatArray
     states: FloatArray
+    accelerations: FloatArray
     inputs: FloatArray
     position: FloatArray
 
@@ -128,12 +150,9 @@ class SampledPrimitive:
         n = self.states.shape[0]
         if (
             self.states.shape != (n, 8)
+            or self.accelerations.shape != (n, 4)
             or self.inputs.shape != (n, 2)
-            or self.position.shape
-            != (
-                n,
-                6,
-            )
+            or self.position.shape != (n, 6)
         ):
             raise ConfigError(f"primitive {self.name}: inconsistent sample shapes")
         if abs((n - 1) * self.dt - self.duration) > 1e-9:
@@ -183,6 +202,7 @@ class SampledPrimitive:
             start_velocity=np.asarray(p.start_velocity, dtype=np.float64),
             end_velocity=np.asarray(p.end_velocity, dtype=np.float64),
             states=np.ascontiguousarray(s.states, dtype=np.float64),
+            accelerations=np.ascontiguousarray(s.accelerations, dtype=np.float64),
             inputs=np.ascontiguousarray(s.inputs, dtype=np.float64),
             position=np.ascontiguousarray(s.position, dtype=np.float64),
         )
@@ -190,6 +210,82 @@ class SampledPrimitive:
     def reference(self) -> Reference:
         """The reference for the closed loop, in the primitive's own frame."""
         return Reference(self.states, self.inputs, self.dt)
+
+    def coarse(self, stride: int) -> tuple[FloatArray, FloatArray]:
+        """States (M, 8) and accelerations (M, 4) at every ``stride``-th tick: enough to
+        rebuild the primitive with :meth:`from_coarse` (the number of ticks must be a
+        multiple of ``stride``)."""
+        if self.num_ticks % stride:
+            raise ConfigError(
+                f"primitive {self.name}: {self.num_ticks} ticks not a multiple of {stride}"
+            )
+        return self.states[::stride].copy(), self.accelerations[::stride].copy()
+
+    @classmethod
+    def from_coarse(
+        cls,
+        states: FloatArray,
+        accelerations: FloatArray,
+        stride: int,
+        *,
+        name: str,
+        kind: PrimitiveKind,
+        dt: float,
+        displacement: FloatArray,
+        start_velocity: FloatArray,
+        end_velocity: FloatArray,
+        params: BallbotParams,
+    ) -> SampledPrimitive:
+        """Rebuild the samples at every tick from every ``stride``-th one.
+
+        q, q̇ and q̈ between stored ticks come from the quintic Hermite interpolant
+        of (q, q̇, q̈) at both ends (error ~h⁶ q⁽⁶⁾, below 1e-10 rad for these smooth
+        trajectories); the torques are recomputed from the 3D equations of motion so
+        the rebuilt samples satisfy them.
+        """
+        from gracenav.model.ballbot3d import Ballbot3D
+
+        h = stride * dt
+        m = states.shape[0] - 1
+        s = np.arange(stride) / stride
+        basis = _quintic_hermite(s)  # (3, stride, 6): value, d/ds, d²/ds²
+        q0, q1 = states[:-1, :4], states[1:, :4]
+        v0, v1 = states[:-1, 4:], states[1:, 4:]
+        a0, a1 = accelerations[:-1], accelerations[1:]
+        coef = np.concatenate([q0, h * v0, h * h * a0, q1, h * v1, h * h * a1], axis=1)
+        coef = coef.reshape(m, 6, 4).transpose(1, 0, 2).reshape(6, m * 4)
+
+        def interpolate(b: FloatArray) -> FloatArray:
+            out: FloatArray = (b @ coef).reshape(stride, m, 4).transpose(1, 0, 2)
+            return out.reshape(m * stride, 4)
+
+        q = interpolate(basis[0])
+        qd = interpolate(basis[1]) / h
+        qdd = interpolate(basis[2]) / (h * h)
+        q = np.concatenate([q, states[-1:, :4]])
+        qd = np.concatenate([qd, states[-1:, 4:]])
+        qdd = np.concatenate([qdd, accelerations[-1:]])
+        model = Ballbot3D(params)
+        mm = model.mass_matrix(q)
+        tau = (mm[:, :2, :] * qdd[:, None, :]).sum(axis=2)
+        tau += model.bias(q, qd)[:, :2] + model.friction(qd)
+        r = params.ball_radius
+        position = r * np.concatenate(
+            [q[:, :2] + q[:, 2:], qd[:, :2] + qd[:, 2:], qdd[:, :2] + qdd[:, 2:]], axis=1
+        )
+        return cls(
+            name=name,
+            kind=kind,
+            duration=m * stride * dt,
+            dt=dt,
+            displacement=displacement,
+            start_velocity=start_velocity,
+            end_velocity=end_velocity,
+            states=np.ascontiguousarray(np.concatenate([q, qd], axis=1)),
+            accelerations=np.ascontiguousarray(qdd),
+            inputs=np.ascontiguousarray(tau),
+            position=np.ascontiguousarray(position),
+        )
 
     def position_state(self, t: ArrayLike) -> FloatArray:
         """Reference position state (x, y, ẋ, ẏ) at times ``t`` (s), linear between ticks
@@ -204,9 +300,33 @@ class SampledPrimitive:
         return out
 
 
+def _quintic_hermite(s: FloatArray) -> FloatArray:
+    """Quintic Hermite basis on [0, 1] for (p0, p0', p0'', p1, p1', p1''): values, first and
+    second derivatives at ``s``; shape (3, len(s), 6)."""
+    c = np.array(
+        [
+            [1, 0, 0, -10, 15, -6],
+            [0, 1, 0, -6, 8, -3],
+            [0, 0, 0.5, -1.5, 1.5, -0.5],
+            [0, 0, 0, 10, -15, 6],
+            [0, 0, 0, -4, 7, -3],
+            [0, 0, 0, 0.5, -1, 0.5],
+        ]
+    )  # row: basis function, column: power of s
+    powers = np.arange(6)
+    sp = s[:, None] ** powers[None, :]
+    d1 = np.zeros_like(sp)
+    d1[:, 1:] = powers[1:] * s[:, None] ** (powers[1:] - 1)
+    d2 = np.zeros_like(sp)
+    d2[:, 2:] = powers[2:] * (powers[2:] - 1) * s[:, None] ** (powers[2:] - 2)
+    return np.stack([sp @ c.T, d1 @ c.T, d2 @ c.T])
+
+
 @dataclass(frozen=True)
 class DomainRadii:
-    """Radii of a domain that is round in position (m) and in velocity (m/s)."""
+    """Extents of a domain: largest position deviation (m) and velocity deviation (m/s)
+    along an axis. Of two concentric domains of one shape (:func:`domain_shape`), the
+    one with the larger extents contains the other."""
 
     position: float
     velocity: float
@@ -235,28 +355,30 @@ class VerificationOptions:
     boundary_points : int
         Initial states on the surface of S (>= 64 recommended; the first 8 are the axis
         extremes).
-    goal_radii : DomainRadii
-        The goal domain G shared by every policy (0.1 m, 0.1 m/s).
-    velocity_per_position : float
-        ρ_v/ρ_p of start domains (1/s).
+    goal_position_extent : float
+        Position extent e_p of the goal domain G shared by every policy (m); its
+        velocity extent follows from :func:`domain_shape`.
     outer_position_factor, outer_velocity_factor : float
-        D'(t) radii over D(t) radii.
+        D'(t) extents over D(t) extents.
     lean_limit : float
         The balancing controller's domain: largest |φ_x|, |φ_y| allowed (rad).
-    max_position_radius : float
-        Upper end of the bisection on S's position radius (m).
+    max_scale : float
+        Upper end of the bisection on the start domain's size S/G.
     bisection_steps : int
         Bisection iterations on S's size.
+    shape_horizon : float
+        Time (s) over which :func:`domain_shape` maximises the contraction: the
+        shortest trim.
     """
 
     boundary_points: int = 64
-    goal_radii: DomainRadii = field(default_factory=lambda: DomainRadii(0.1, 0.1))
-    velocity_per_position: float = 1.0
-    outer_position_factor: float = 1.3
-    outer_velocity_factor: float = 2.0
+    goal_position_extent: float = 0.1
+    outer_position_factor: float = 1.6
+    outer_velocity_factor: float = 3.2
     lean_limit: float = float(np.deg2rad(8.0))
-    max_position_radius: float = 0.5
-    bisection_steps: int = 7
+    max_scale: float = 3.0
+    bisection_steps: int = 6
+    shape_horizon: float = 1.0
 
     def __post_init__(self) -> None:
         if self.boundary_points < 8:
@@ -265,6 +387,66 @@ class VerificationOptions:
             raise ConfigError("outer domain factors must be >= 1 (D(t) ⊂ D'(t))")
         if not self.lean_limit > 0:
             raise ConfigError("lean_limit must be positive")
+        if not self.goal_position_extent > 0:
+            raise ConfigError("goal_position_extent must be positive")
+        if not self.max_scale >= 1:
+            raise ConfigError("max_scale must be >= 1 (S ⊇ G)")
+
+
+@dataclass(frozen=True)
+class DomainShape:
+    """The shape shared by every domain: velocity extent per position extent (1/s) and
+    position-velocity correlation r."""
+
+    velocity_per_position: float
+    correlation: float
+
+    def radii(self, position_extent: float) -> DomainRadii:
+        """Extents of the domain of this shape with the given position extent (m)."""
+        return DomainRadii(position_extent, position_extent * self.velocity_per_position)
+
+
+def domain_shape(gains: ControllerGains, *, horizon: float = 1.0) -> DomainShape:
+    """The domain shape the closed loop contracts the most over ``horizon`` (s).
+
+    For each plane the linearised closed loop of the Fig. 2 cascade maps an initial
+    position state error (lean at its plan) to the error at ``horizon`` by a 2 × 2
+    matrix Φ; the ellipse {eᵀ P e <= 1} minimising ‖P^½ Φ P^-½‖₂ (the worst-case
+    shrink factor) is found by Nelder–Mead over the normalised P, for the worse of
+    the two planes.
+    """
+    import scipy.linalg
+    import scipy.optimize
+
+    from gracenav.control import planar_to_position_coordinates
+    from gracenav.model.planar import PlanarBallbot
+
+    params = gains.params
+    t = planar_to_position_coordinates(params.ball_radius)
+    phis = []
+    for i, plane in enumerate(("x", "y")):
+        a, b = PlanarBallbot(params, plane=plane).linearize()  # type: ignore[arg-type]
+        acl = t @ a @ np.linalg.inv(t) - (t @ b) @ gains.lqr[i][None, :]
+        phis.append(scipy.linalg.expm(acl * horizon)[np.ix_([0, 2], [0, 2])])
+
+    def unit(z: FloatArray) -> FloatArray:
+        return np.array([[1.0, z[0]], [z[0], np.exp(z[1])]])
+
+    def shrink(z: FloatArray) -> float:
+        p = unit(z)
+        if np.linalg.eigvalsh(p)[0] <= 1e-9:
+            return 1e6
+        ell = np.linalg.cholesky(p)
+        return max(float(np.linalg.norm(ell.T @ phi @ np.linalg.inv(ell.T), 2)) for phi in phis)
+
+    grid = [np.array([bb, lc]) for bb in np.linspace(-2, 2, 21) for lc in np.linspace(-3, 3, 13)]
+    start = min(grid, key=shrink)
+    best = scipy.optimize.minimize(shrink, start, method="Nelder-Mead", options={"xatol": 1e-6})
+    cov = np.linalg.inv(unit(best.x))
+    return DomainShape(
+        velocity_per_position=float(np.sqrt(cov[1, 1] / cov[0, 0])),
+        correlation=float(cov[0, 1] / np.sqrt(cov[0, 0] * cov[1, 1])),
+    )
 
 
 @dataclass(frozen=True)
@@ -310,7 +492,9 @@ class MotionPolicy:
     start_radii, goal_radii : DomainRadii
         Sizes of S and G.
     outer_factors : tuple of float
-        D'(t) radii over D(t) radii, (position, velocity).
+        D'(t) extents over D(t) extents, (position, velocity).
+    correlation : float
+        Position-velocity correlation r of every domain (see :func:`domain_shape`).
     report : VerificationReport or None
         Verification outcome, when verified.
     """
@@ -319,7 +503,8 @@ class MotionPolicy:
     gains: ControllerGains
     start_radii: DomainRadii
     goal_radii: DomainRadii
-    outer_factors: tuple[float, float] = (1.3, 2.0)
+    outer_factors: tuple[float, float] = (1.6, 3.2)
+    correlation: float = 0.0
     report: VerificationReport | None = None
 
     @property
@@ -333,7 +518,8 @@ class MotionPolicy:
         return self.primitive.duration
 
     def radii(self, t: ArrayLike) -> tuple[FloatArray, FloatArray]:
-        """Position and velocity radii of D(t): geometric from S at 0 to G at t_f."""
+        """Position (m) and velocity (m/s) extents of D(t): geometric from S at 0 to G
+        at t_f."""
         s = np.clip(np.asarray(t, dtype=float) / self.duration, 0.0, 1.0)
         rp = self.start_radii.position * (self.goal_radii.position / self.start_radii.position) ** s
         rv = self.start_radii.velocity * (self.goal_radii.velocity / self.start_radii.velocity) ** s
@@ -343,7 +529,8 @@ class MotionPolicy:
         """D(t), in the policy's own frame."""
         rp, rv = self.radii(t)
         return EllipsoidalDomain(
-            self.primitive.position_state(t), isotropic_shape(float(rp), float(rv))
+            self.primitive.position_state(t),
+            correlated_shape(float(rp), float(rv), self.correlation),
         )
 
     def outer_domain(self, t: float) -> EllipsoidalDomain:
@@ -351,7 +538,8 @@ class MotionPolicy:
         rp, rv = self.radii(t)
         cp, cv = self.outer_factors
         return EllipsoidalDomain(
-            self.primitive.position_state(t), isotropic_shape(float(rp) * cp, float(rv) * cv)
+            self.primitive.position_state(t),
+            correlated_shape(float(rp) * cp, float(rv) * cv, self.correlation),
         )
 
     @property
@@ -370,9 +558,9 @@ class MotionPolicy:
         t = np.arange(self.primitive.num_ticks + 1) * self.primitive.dt
         rp, rv = self.radii(t)
         cp, cv = self.outer_factors
-        shapes = np.zeros((t.size, 4, 4))
-        shapes[:, 0, 0] = shapes[:, 1, 1] = 1.0 / (rp * cp) ** 2
-        shapes[:, 2, 2] = shapes[:, 3, 3] = 1.0 / (rv * cv) ** 2
+        # All D'(t) are scaled copies of one shape: P(t) = P(0) · (ρ(0)/ρ(t))².
+        base = correlated_shape(float(rp[0]) * cp, float(rv[0]) * cv, self.correlation)
+        shapes = base[None] * ((rp[0] / rp) ** 2)[:, None, None]
         return np.ascontiguousarray(self.primitive.position[:, :4]), shapes
 
     def with_start_radii(self, radii: DomainRadii) -> MotionPolicy:
@@ -402,10 +590,9 @@ def verify_policy(
     options = options if options is not None else VerificationOptions()
     prim = policy.primitive
     u = sphere_points(options.boundary_points)
-    scale = np.array(
-        [policy.start_radii.position] * 2 + [policy.start_radii.velocity] * 2, dtype=float
-    )
-    p0 = prim.position[0, :4] + u * scale
+    # Map unit-sphere points onto the surface of S: p = c + L u with L Lᵀ = P⁻¹.
+    ell = np.linalg.cholesky(np.linalg.inv(policy.start_domain.shape_matrix))
+    p0 = prim.position[0, :4] + u @ ell.T
     x_plan = prim.states[0]
     lean = x_plan[2:4]
     rate = x_plan[6:8]
@@ -445,13 +632,22 @@ def size_policy(
     gains: ControllerGains | None = None,
     options: VerificationOptions | None = None,
     *,
+    shape: DomainShape | None = None,
     progress: Callable[[], None] | None = None,
 ) -> MotionPolicy:
     """Build the policy of ``primitive`` with the largest start domain that verifies.
 
-    Bisection on the start domain's position radius between the goal's and
-    ``options.max_position_radius`` (the velocity radius follows
-    ``options.velocity_per_position``, never below the goal's).
+    Bisection on the scale S/G between 1 and ``options.max_scale``.
+
+    Parameters
+    ----------
+    primitive : SampledPrimitive
+    gains : ControllerGains, optional
+    options : VerificationOptions, optional
+    shape : DomainShape, optional
+        Default: :func:`domain_shape` of ``gains``.
+    progress : callable, optional
+        Called after each verification.
 
     Returns
     -------
@@ -460,26 +656,24 @@ def size_policy(
     """
     options = options if options is not None else VerificationOptions()
     gains = gains if gains is not None else design_gains()
-    goal = options.goal_radii
+    shape = shape if shape is not None else domain_shape(gains, horizon=options.shape_horizon)
+    goal = shape.radii(options.goal_position_extent)
     factors = (options.outer_position_factor, options.outer_velocity_factor)
 
-    def radii_at(rp: float) -> DomainRadii:
-        return DomainRadii(rp, max(goal.velocity, rp * options.velocity_per_position))
-
-    def attempt(rp: float) -> MotionPolicy:
-        pol = MotionPolicy(primitive, gains, radii_at(rp), goal, factors)
+    def attempt(scale: float) -> MotionPolicy:
+        pol = MotionPolicy(primitive, gains, goal.scaled(scale), goal, factors, shape.correlation)
         rep = verify_policy(pol, options)
         if progress is not None:
             progress()
         return replace(pol, report=rep)
 
-    best = attempt(goal.position)
+    best = attempt(1.0)
     if best.report is None or not best.report.passed:
         return best
-    top = attempt(options.max_position_radius)
+    top = attempt(options.max_scale)
     if top.report is not None and top.report.passed:
         return top
-    lo, hi = goal.position, options.max_position_radius
+    lo, hi = 1.0, options.max_scale
     for _ in range(options.bisection_steps):
         mid = 0.5 * (lo + hi)
         cand = attempt(mid)
@@ -488,3 +682,88 @@ def size_policy(
         else:
             hi = mid
     return best
+
+
+def rotate_pairs(a: ArrayLike, k: int) -> FloatArray:
+    """Rotate every consecutive (x, y) pair of the last axis of ``a`` by k·90° (exact).
+
+    Model states [θ_x, θ_y, φ_x, φ_y, θ̇_x, θ̇_y, φ̇_x, φ̇_y], torques [τ_x, τ_y] and
+    position states [x, y, ẋ, ẏ, (ẍ, ÿ)] all consist of such pairs.
+    """
+    arr = np.asarray(a, dtype=np.float64)
+    k %= 4
+    c = (1.0, 0.0, -1.0, 0.0)[k]
+    s = (0.0, 1.0, 0.0, -1.0)[k]
+    rot = np.array([[c, -s], [s, c]])
+    pairs = arr.reshape(*arr.shape[:-1], arr.shape[-1] // 2, 2)
+    out: FloatArray = (pairs @ rot.T).reshape(arr.shape)
+    return out
+
+
+def instantiated_reference(
+    primitive: SampledPrimitive, k: int, origin: ArrayLike, radius: float
+) -> tuple[Reference, FloatArray]:
+    """A primitive placed on the map: rotated by k·90° about its start, start moved to
+    ``origin`` (x, y) (m).
+
+    Returns
+    -------
+    Reference
+        World-frame reference states and feed-forward torques at the ticks.
+    position : ndarray, shape (T + 1, 6)
+        World-frame x, y, ẋ, ẏ, ẍ, ÿ of the reference.
+    """
+    o = np.asarray(origin, dtype=np.float64)
+    states = rotate_pairs(primitive.states, k)
+    states[:, 0:2] += o / radius
+    position = rotate_pairs(primitive.position, k)
+    position[:, 0:2] += o
+    return Reference(states, rotate_pairs(primitive.inputs, k), primitive.dt), position
+
+
+@dataclass(frozen=True)
+class SwitchJump:
+    """Commanded torque at a graceful switch from ``first`` to ``second`` (rotated by
+    ``rotation``·90°): the jump at the switch tick and, for scale, the largest
+    tick-to-tick change elsewhere in the run (N m)."""
+
+    first: str
+    second: str
+    rotation: int
+    jump: float
+    largest_other_step: float
+
+
+def switch_torque_jumps(
+    policies: Sequence[MotionPolicy], *, params: BallbotParams | None = None
+) -> list[SwitchJump]:
+    """Simulate every connecting pair Φ₁ ⪰ Φ₂ (σ₁(t_f) = σ₂(0) through acceleration,
+    after rotating Φ₂) from the centre of S₁ and measure the commanded torque jump at
+    the switch (paper Sec. III-C (iii): φ₁(t_f1) = φ₂(0) makes it continuous)."""
+    from gracenav.simulate import simulate
+
+    out = []
+    for a in policies:
+        end = a.primitive.position[-1]
+        for b in policies:
+            if b.gains is not a.gains and not np.array_equal(b.gains.lqr, a.gains.lqr):
+                continue
+            for k in range(4):
+                start = rotate_pairs(b.primitive.position[0], k)
+                if not np.allclose(start[2:], end[2:], rtol=0.0, atol=1e-9):
+                    continue
+                r = a.gains.params.ball_radius
+                ref_b, _ = instantiated_reference(b.primitive, k, end[:2], r)
+                ref_a = a.primitive.reference()
+                joined = Reference(
+                    np.concatenate([ref_a.states, ref_b.states[1:]]),
+                    np.concatenate([ref_a.inputs, ref_b.inputs[1:]]),
+                    ref_a.dt,
+                )
+                res = simulate(ref_a.states[0], joined, a.gains, params=params)
+                steps = np.max(np.abs(np.diff(res.inputs, axis=0)), axis=1)
+                n = a.primitive.num_ticks
+                jump = float(steps[n]) if n < steps.size else 0.0
+                other = float(np.max(np.delete(steps, n))) if steps.size > 1 else 0.0
+                out.append(SwitchJump(a.name, b.name, k, jump, other))
+    return out

@@ -1,0 +1,151 @@
+"""Motion policies: domain shape, domains, verification, coarse storage, switching."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import scipy.linalg
+
+from gracenav import BallbotParams, ConfigError
+from gracenav.control import design_gains, planar_to_position_coordinates
+from gracenav.domains import correlated_shape
+from gracenav.model import Ballbot3D, PlanarBallbot
+from gracenav.palette import load_palette
+from gracenav.policies import (
+    SampledPrimitive,
+    VerificationOptions,
+    domain_shape,
+    rotate_pairs,
+    switch_torque_jumps,
+    verify_policy,
+)
+
+PARAMS = BallbotParams()
+
+
+@pytest.fixture(scope="module")
+def palette():
+    return load_palette()
+
+
+def shrink_factor(cov2: np.ndarray, horizon: float, plane: str, row: int) -> float:
+    """Worst-case shrink of the ellipse {eᵀ Σ⁻¹ e <= 1} under the linear closed loop."""
+    gains = design_gains(PARAMS)
+    a, b = PlanarBallbot(PARAMS, plane=plane).linearize()  # type: ignore[arg-type]
+    t = planar_to_position_coordinates(PARAMS.ball_radius)
+    acl = t @ a @ np.linalg.inv(t) - (t @ b) @ gains.lqr[row][None, :]
+    phi = scipy.linalg.expm(acl * horizon)[np.ix_([0, 2], [0, 2])]
+    # Boundary points of the ellipse, pushed through Φ, measured in the same ellipse.
+    ang = np.linspace(0, 2 * np.pi, 721)
+    ell = np.linalg.cholesky(cov2)
+    x0 = ell @ np.vstack([np.cos(ang), np.sin(ang)])
+    x1 = phi @ x0
+    return float(np.sqrt(np.max(np.einsum("in,ij,jn->n", x1, np.linalg.inv(cov2), x1))))
+
+
+def test_domain_shape_contracts_where_a_round_domain_does_not() -> None:
+    shape = domain_shape(design_gains(PARAMS), horizon=1.0)
+    k, r = shape.velocity_per_position, shape.correlation
+    cov = np.array([[1.0, r * k], [r * k, k * k]])
+    for row, plane in enumerate("xy"):
+        assert shrink_factor(cov, 1.0, plane, row) < 0.35
+        # A round domain (1 m ↔ 1 m/s) is not contracted in 1 s: trims could not chain.
+        assert shrink_factor(np.eye(2), 1.0, plane, row) > 1.0
+    assert -1.0 < r < 0.0  # ahead and moving back toward the reference is inside
+
+
+def test_domains_of_a_policy(palette) -> None:
+    pol = palette["rest_to_cruise_x_2_0"]
+    prim = pol.primitive
+    np.testing.assert_allclose(pol.start_domain.center, prim.position[0, :4], atol=1e-12)
+    np.testing.assert_allclose(pol.goal_domain.center, prim.position[-1, :4], atol=1e-12)
+    for t in np.linspace(0, pol.duration, 9):
+        assert pol.outer_domain(t).contains_domain(pol.domain(t))
+    # D(t) shrinks geometrically from S to G.
+    rp, _ = pol.radii(np.array([0.0, pol.duration / 2, pol.duration]))
+    assert rp[1] == pytest.approx(np.sqrt(rp[0] * rp[2]), rel=1e-12)
+    # Concentric S ⊇ G of one shape: G₁ ⊂ S₂ whenever the ends meet.
+    assert pol.start_radii.contains(pol.goal_radii)
+    goal_at_start = dataclasses.replace(pol.goal_domain, center=pol.start_domain.center)
+    assert pol.start_domain.contains_domain(goal_at_start)
+
+
+def test_palette_has_39_verified_unique_policies(palette) -> None:
+    assert len(palette) == 39
+    assert palette.duplicates == (("cruise_y", "cruise_x rotated by 90°"),)
+    for pol in palette:
+        rep = pol.report
+        assert rep is not None and rep.passed and rep.runs >= 64
+        assert rep.max_outer_value <= 1.0 and rep.max_goal_value <= 1.0
+        assert rep.max_lean <= palette.options.lean_limit
+        assert rep.max_torque <= PARAMS.torque_limit
+        assert pol.start_radii.position >= pol.goal_radii.position
+
+
+@pytest.mark.parametrize("name", ["rest", "cruise_xy", "cruise_x_to_cruise_y_1_1"])
+def test_reverification_agrees_with_the_stored_report(palette, name: str) -> None:
+    pol = palette[name]
+    rep = verify_policy(pol, palette.options)
+    assert rep.passed
+    assert rep.max_outer_value == pytest.approx(pol.report.max_outer_value, rel=1e-9)
+
+
+def test_verification_can_fail() -> None:
+    pal = load_palette()
+    pol = pal["rest_to_rest_1_0"]
+    # Too tight an outer domain: the non-minimum-phase transient leaves it.
+    tight = dataclasses.replace(pol, outer_factors=(1.0, 1.0))
+    rep = verify_policy(tight, pal.options)
+    assert not rep.passed and rep.max_outer_value > 1.0
+    # Too large a start domain: the lean limit is exceeded.
+    huge = pol.with_start_radii(pol.start_radii.scaled(4.0))
+    rep = verify_policy(huge, dataclasses.replace(pal.options, lean_limit=np.deg2rad(6.0)))
+    assert not rep.passed
+
+
+def test_coarse_storage_rebuilds_a_feasible_trajectory(palette) -> None:
+    """The palette stores 1/128 s samples; the rebuilt 1/1024 s samples satisfy the 3D EOM."""
+    from gracenav.primitives import primitive_set
+
+    model = Ballbot3D(PARAMS)
+    for name in ("rest_to_rest_2_1", "cruise_x_to_cruise_nx_0_1"):
+        fresh = SampledPrimitive.from_primitive(primitive_set()[name])
+        stored = palette[name].primitive
+        np.testing.assert_allclose(stored.states, fresh.states, atol=1e-9)
+        np.testing.assert_allclose(stored.inputs, fresh.inputs, atol=1e-6)
+        np.testing.assert_allclose(stored.position, fresh.position, atol=1e-9)
+        q, qd = stored.states[:, :4], stored.states[:, 4:]
+        acc = model.accelerations(q, qd, stored.inputs)
+        mm = model.mass_matrix(q)
+        residual = np.einsum("nij,nj->ni", mm, acc - stored.accelerations)
+        assert np.max(np.abs(residual)) < 1e-6
+
+
+def test_rotate_pairs() -> None:
+    x = np.arange(8.0)
+    np.testing.assert_array_equal(rotate_pairs(x, 1), [-1, 0, -3, 2, -5, 4, -7, 6])
+    np.testing.assert_array_equal(rotate_pairs(x, 4), x)
+    np.testing.assert_array_equal(rotate_pairs(rotate_pairs(x, 3), 1), x)
+
+
+def test_graceful_switches_have_no_torque_jump(palette) -> None:
+    """φ₁(t_f1) = φ₂(0): the commanded torque is continuous at every graceful switch."""
+    names = ["rest", "rest_to_cruise_x_1_0", "cruise_x", "cruise_x_to_cruise_y_1_1"]
+    names += ["cruise_x_to_rest_1_0", "cruise_xy", "cruise_xy_to_rest_1_1"]
+    jumps = switch_torque_jumps([palette[n] for n in names])
+    assert len(jumps) >= 10
+    for j in jumps:
+        # The jump at the switch is far below the ordinary tick-to-tick change.
+        assert j.jump < 0.1, j
+        assert j.jump <= 0.2 * j.largest_other_step, j
+
+
+def test_options_validation() -> None:
+    with pytest.raises(ConfigError, match="outer domain factors"):
+        VerificationOptions(outer_position_factor=0.5)
+    with pytest.raises(ConfigError, match="max_scale"):
+        VerificationOptions(max_scale=0.5)
+    with pytest.raises(ConfigError, match="correlation"):
+        correlated_shape(0.1, 0.1, 1.0)
