@@ -372,11 +372,11 @@ class VerificationOptions:
     """
 
     boundary_points: int = 64
-    goal_position_extent: float = 0.1
+    goal_position_extent: float = 0.08
     outer_position_factor: float = 1.6
     outer_velocity_factor: float = 3.2
     lean_limit: float = float(np.deg2rad(8.0))
-    max_scale: float = 3.0
+    max_scale: float = 2.5
     bisection_steps: int = 6
     shape_horizon: float = 1.0
 
