@@ -42,6 +42,11 @@ def register(sub: Any) -> None:
         description="Re-run the verification of every policy of the palette and report.",
     )
     v.add_argument("--file", type=Path, default=None, help="palette file (default: shipped)")
+    v.add_argument(
+        "--switches",
+        action="store_true",
+        help="also simulate every graceful switch and report the commanded torque jump",
+    )
     v.set_defaults(func=run_verify)
     sh = s.add_parser(
         "show",
@@ -123,23 +128,36 @@ def run_build(args: argparse.Namespace) -> int:
 
 def run_verify(args: argparse.Namespace) -> int:
     """Run ``gracenav palette verify``."""
+    import dataclasses
     import time
 
     from gracenav.palette import load_palette
-    from gracenav.policies import verify_policy
+    from gracenav.policies import switch_torque_jumps, verify_policy
 
     pal = load_palette(args.file)
     t0 = time.perf_counter()
     failed = []
     for pol in pal.policies:
-        rep = verify_policy(pol, pal.options)
-        if not rep.passed:
-            failed.append(pol.name)
+        for k in (0, 1):
+            rep = verify_policy(
+                dataclasses.replace(pol, primitive=pol.primitive.rotated(k)), pal.options
+            )
+            if not rep.passed:
+                failed.append(f"{pol.name} at {90 * k}°")
     dt = time.perf_counter() - t0
     if failed:
-        print(f"{len(failed)} of {len(pal)} policies FAILED verification: {', '.join(failed)}")
+        print(f"{len(failed)} verifications FAILED: {', '.join(failed)}")
         return 1
-    print(f"all {len(pal)} policies verified in {dt:.1f} s")
+    print(f"all {len(pal)} policies verified at 0° and 90° in {dt:.1f} s")
+    if args.switches:
+        jumps = switch_torque_jumps(pal.policies)
+        worst = max(jumps, key=lambda j: j.jump)
+        print(
+            f"{len(jumps)} graceful switches simulated: largest commanded torque jump "
+            f"{worst.jump:.4f} N m ({worst.first} -> {worst.second} rotated "
+            f"{90 * worst.rotation}°); largest tick-to-tick change elsewhere "
+            f"{max(j.largest_other_step for j in jumps):.3f} N m"
+        )
     return 0
 
 
