@@ -396,7 +396,7 @@ class VerificationOptions:
     outer_position_factor: float = 1.6
     outer_velocity_factor: float = 3.2
     lean_limit: float = float(np.deg2rad(8.0))
-    max_scale: float = 2.5
+    max_scale: float = 2.0
     bisection_steps: int = 6
     shape_horizon: float = 1.0
 

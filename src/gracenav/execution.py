@@ -1,0 +1,532 @@
+"""The hybrid controller (paper Sec. IV-C, V-B): execute and switch motion policies.
+
+A timer is reset when a policy starts; a policy starts only if the position
+state is in its start domain S; it runs until the timer reaches t_f and the
+state is in its goal domain G, then the tree's next policy takes over (G ⊂ S
+of the next by construction: a graceful switch). Every control tick the state
+is checked against the outer domain D'(t); on exit (a large disturbance) the
+current policy stops and the policy with the lowest cost-to-go whose S
+contains the state starts, without replanning. If there is none, the robot
+switches to balancing (station-keeping) mode and the task stops: the only
+non-graceful switches are these recoveries.
+"""
+
+from __future__ import annotations
+
+import enum
+import time as _time
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from gracenav.errors import ConfigError, PlanningError
+from gracenav.graph import PreparesGraph
+from gracenav.library import PolicyLibrary
+from gracenav.planning import CostCriterion, PolicyTree, plan_tree
+from gracenav.policies import PrimitiveKind, instantiated_reference
+from gracenav.simulate import (
+    BodyForce,
+    Disturbance,
+    Drag,
+    Push,
+    Reference,
+    SimulationOptions,
+    StateJump,
+    StopReason,
+    position_state,
+    simulate,
+)
+
+__all__ = [
+    "Episode",
+    "EventReason",
+    "ExecutionOptions",
+    "HybridController",
+    "SwitchEvent",
+    "TaskStatus",
+]
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+class EventReason(enum.Enum):
+    """Why the hybrid controller started a policy."""
+
+    START = "start"
+    GRACEFUL = "graceful"
+    NEW_GOAL = "new_goal"
+    HOLD_GOAL = "hold_goal"
+    DOMAIN_EXIT = "domain_exit"
+    NOT_IN_GOAL = "not_in_goal"
+    BALANCING = "balancing"
+
+    @property
+    def graceful(self) -> bool:
+        """Whether a switch for this reason keeps the motion graceful."""
+        return self in (EventReason.GRACEFUL, EventReason.NEW_GOAL, EventReason.HOLD_GOAL)
+
+
+class TaskStatus(enum.Enum):
+    """How a task ended."""
+
+    GOAL_REACHED = "goal_reached"
+    LOOPS_COMPLETED = "loops_completed"
+    NO_POLICY = "no_policy"
+    TIMEOUT = "timeout"
+
+
+@dataclass(frozen=True)
+class SwitchEvent:
+    """One entry of the hybrid controller's event log.
+
+    Attributes
+    ----------
+    time : float
+        Time of the switch (s).
+    from_policy, to_policy : int
+        Library rows (−1: none, i.e. the task start or balancing mode).
+    reason : EventReason
+    tick : int
+        Sample index in the episode's arrays.
+    """
+
+    time: float
+    from_policy: int
+    to_policy: int
+    reason: EventReason
+    tick: int
+
+
+@dataclass(frozen=True)
+class ExecutionOptions:
+    """Options of :class:`HybridController` runs.
+
+    Parameters
+    ----------
+    plant : {"model3d", "mujoco"}
+        Simulated plant.
+    max_time : float
+        Give up after this simulated time (s).
+    goal_tolerance : float
+        A point-to-point task ends when, after the goal policy, the ball is within
+        this distance (m) of the goal and slower than this speed (m/s); until then the
+        goal rest trim is held (trims may last any time).
+    balance_time : float
+        How long balancing mode is simulated after a task stops for want of a policy (s).
+    simulation : SimulationOptions
+        Integration substeps and sensor noise.
+    """
+
+    plant: Literal["model3d", "mujoco"] = "model3d"
+    max_time: float = 120.0
+    goal_tolerance: float = 0.05
+    balance_time: float = 2.0
+    simulation: SimulationOptions = field(default_factory=SimulationOptions)
+
+    def __post_init__(self) -> None:
+        if self.plant not in ("model3d", "mujoco"):
+            raise ConfigError(f"plant must be 'model3d' or 'mujoco', got {self.plant!r}")
+        if not self.max_time > 0:
+            raise ConfigError(f"max_time must be positive, got {self.max_time!r}")
+        if not self.goal_tolerance > 0:
+            raise ConfigError(f"goal_tolerance must be positive, got {self.goal_tolerance!r}")
+
+
+@dataclass(frozen=True)
+class Episode:
+    """One simulated task execution.
+
+    Attributes
+    ----------
+    time : ndarray, shape (N,)
+        Control tick times (s).
+    states : ndarray, shape (N, 8)
+        Plant states.
+    inputs : ndarray, shape (N, 2)
+        Commanded (saturated) torques (N m).
+    policy : ndarray of int, shape (N,)
+        Library row executing at each tick (−1 in balancing mode).
+    reference : ndarray, shape (N, 6)
+        Reference x, y, ẋ, ẏ, ẍ, ÿ of the executing policy (world frame).
+    events : tuple of SwitchEvent
+    status : TaskStatus
+    goals_reached : tuple of (float, int)
+        Time and goal index of every goal reached (surveillance: several).
+    tree_seconds : tuple of float
+        Wall time of every single-goal tree computation (s).
+    radius : float
+        Ball radius (m).
+    """
+
+    time: FloatArray
+    states: FloatArray
+    inputs: FloatArray
+    policy: IntArray
+    reference: FloatArray
+    events: tuple[SwitchEvent, ...]
+    status: TaskStatus
+    goals_reached: tuple[tuple[float, int], ...]
+    tree_seconds: tuple[float, ...]
+    radius: float
+
+    @property
+    def position_state(self) -> FloatArray:
+        """Ball [x, y, ẋ, ẏ] at each tick (m, m/s), shape (N, 4)."""
+        return position_state(self.states, self.radius)
+
+    @property
+    def lean(self) -> FloatArray:
+        """Body lean [φ_x, φ_y] (rad), shape (N, 2)."""
+        return self.states[:, 2:4]
+
+    @property
+    def reached_goal(self) -> bool:
+        """Whether the task ended at its goal (or completed its loops)."""
+        return self.status in (TaskStatus.GOAL_REACHED, TaskStatus.LOOPS_COMPLETED)
+
+    @property
+    def path_length(self) -> float:
+        """XY length of the ball's path (m)."""
+        p = self.position_state[:, :2]
+        return float(np.sum(np.linalg.norm(np.diff(p, axis=0), axis=1)))
+
+    @property
+    def switches(self) -> int:
+        """Number of policy switches (the first start excluded)."""
+        return sum(1 for e in self.events if e.reason is not EventReason.START)
+
+    @property
+    def non_graceful_switches(self) -> int:
+        """Switches forced by a disturbance (domain exit, not in G, balancing mode)."""
+        return sum(
+            1 for e in self.events if e.reason is not EventReason.START and not e.reason.graceful
+        )
+
+    def graceful_torque_jumps(self) -> FloatArray:
+        """|Δτ| (N m) between the last tick of a policy and the first of its graceful
+        successor, one per graceful switch."""
+        ticks = [e.tick for e in self.events if e.reason.graceful and e.tick > 0]
+        if not ticks:
+            return np.zeros(0)
+        t = np.asarray(ticks)
+        return np.asarray(np.max(np.abs(self.inputs[t] - self.inputs[t - 1]), axis=1))
+
+    def ball_jerk(self, params: object | None = None) -> FloatArray:
+        """Ball jerk magnitude (m/s³) between ticks, from the 3D model's accelerations,
+        shape (N − 1,)."""
+        from gracenav.model.ballbot3d import Ballbot3D
+        from gracenav.params import BallbotParams
+
+        model = Ballbot3D(params if isinstance(params, BallbotParams) else None)
+        acc = model.accelerations(self.states[:, :4], self.states[:, 4:], self.inputs)
+        ball = self.radius * (acc[:, :2] + acc[:, 2:])
+        dt = np.diff(self.time)
+        return np.asarray(np.linalg.norm(np.diff(ball, axis=0), axis=1) / dt)
+
+
+def _segment_disturbances(
+    disturbances: Sequence[Disturbance], t0: float, dt: float, nt: int, applied: set[int]
+) -> tuple[list[Disturbance], list[int]]:
+    """The disturbances of the window [t0, t0 + nt·dt] in local time; instantaneous ones
+    already applied (``applied``: indices) are skipped. Returns them and the indices of
+    the instantaneous ones included."""
+    out: list[Disturbance] = []
+    inst: list[int] = []
+    t1 = t0 + nt * dt
+    for i, d in enumerate(disturbances):
+        if isinstance(d, (Push, StateJump)):
+            if i in applied or not (t0 - 0.5 * dt <= d.time <= t1 + 0.5 * dt):
+                continue
+            out.append(replace(d, time=max(0.0, d.time - t0)))
+            inst.append(i)
+        elif isinstance(d, (BodyForce, Drag)):
+            a, b = max(d.start_time, t0), min(d.end_time, t1)
+            if b - a > 0.5 * dt:
+                out.append(replace(d, start_time=a - t0, end_time=b - t0))
+    return out, inst
+
+
+class HybridController:
+    """Executes navigation tasks with a policy library, its graph and single-goal trees.
+
+    Parameters
+    ----------
+    library : PolicyLibrary
+    graph : PreparesGraph
+    criterion : {"time", "distance"}
+        Optimality criterion of the trees.
+    params : BallbotParams, optional
+        Parameters of the simulated plant (default: the palette's).
+    """
+
+    def __init__(
+        self,
+        library: PolicyLibrary,
+        graph: PreparesGraph,
+        *,
+        criterion: CostCriterion | str = CostCriterion.TIME,
+        params: object | None = None,
+    ) -> None:
+        from gracenav.params import BallbotParams
+
+        self.library = library
+        self.graph = graph
+        self.criterion = CostCriterion(criterion) if isinstance(criterion, str) else criterion
+        self.palette = library.palette
+        self.gains = self.palette.gains
+        self.params = params if isinstance(params, BallbotParams) else self.palette.params
+        self._adjacency = graph.csr(self.criterion.value)  # type: ignore[arg-type]
+        self._trees: dict[int, PolicyTree] = {}
+        self.tree_seconds: list[float] = []
+
+    # -- planning ------------------------------------------------------------------
+    def goal_policy(self, goal: ArrayLike) -> int:
+        """The closest trim policy (Euclidean, to its G's centre) whose G contains ``goal``.
+
+        Raises
+        ------
+        PlanningError
+            If the goal is outside the map, in an obstacle (grown by the footprint), or
+            no trim policy's goal domain contains it (outside coverage).
+        """
+        g = np.asarray(goal, dtype=float)
+        if g.shape != (4,) or not np.all(np.isfinite(g)):
+            raise ConfigError(f"a goal is a position state (x, y, xdot, ydot), got {goal!r}")
+        wm = self.library.world_map
+        (x0, y0), (x1, y1) = wm.bounds
+        if not (x0 <= g[0] <= x1 and y0 <= g[1] <= y1):
+            raise PlanningError(
+                f"goal ({g[0]:g}, {g[1]:g}) is outside the map [{x0:g}, {x1:g}] × [{y0:g}, {y1:g}]"
+            )
+        if float(wm.clearance(g[None, :2])[0]) < self.library.footprint_radius:
+            raise PlanningError(
+                f"goal ({g[0]:g}, {g[1]:g}) is inside an obstacle or closer to one than the "
+                f"robot's footprint radius {self.library.footprint_radius:g} m"
+            )
+        trims = self.library.trim_indices()
+        ends = self.library.end_state[trims]
+        candidates = []
+        for i in trims[np.argsort(np.linalg.norm(ends - g, axis=1))][:64]:
+            if self.library.policy(int(i)).goal_domain.contains(g):
+                candidates.append(int(i))
+                break
+        if not candidates:
+            raise PlanningError(
+                f"goal {tuple(float(v) for v in g)} is outside coverage: no trim policy of the "
+                "library has it in its goal domain (put the goal on the instantiation lattice, "
+                "at rest or at a cruise velocity, away from obstacles)"
+            )
+        return candidates[0]
+
+    def tree(self, goal_policy: int) -> PolicyTree:
+        """The single-goal optimal tree toward library row ``goal_policy`` (cached)."""
+        tree = self._trees.get(goal_policy)
+        if tree is None:
+            t0 = _time.perf_counter()
+            tree = plan_tree(self._adjacency, goal_policy, criterion=self.criterion)
+            self.tree_seconds.append(_time.perf_counter() - t0)
+            self._trees[goal_policy] = tree
+        return tree
+
+    def best_policy(self, p: ArrayLike, tree: PolicyTree) -> int:
+        """The policy with the lowest cost-to-go whose S contains ``p`` (−1 if none)."""
+        hits = self.library.start_domain_contains(np.asarray(p, dtype=float)[None, :])
+        idx = hits.indices[hits.indptr[0] : hits.indptr[1]]
+        if idx.size == 0:
+            return -1
+        cost = tree.cost_to_go[idx]
+        if not np.any(np.isfinite(cost)):
+            return -1
+        return int(idx[int(np.argmin(cost))])
+
+    # -- execution -----------------------------------------------------------------
+    def run(
+        self,
+        x0: ArrayLike,
+        goals: Sequence[ArrayLike],
+        *,
+        loops: int = 1,
+        disturbances: Sequence[Disturbance] = (),
+        options: ExecutionOptions | None = None,
+    ) -> Episode:
+        """Execute a task: reach ``goals`` in order, ``loops`` times (surveillance), or
+        one goal once (point-to-point).
+
+        Parameters
+        ----------
+        x0 : array_like, shape (8,)
+            Initial plant state.
+        goals : sequence of array_like, shape (4,)
+            Goal position states (x, y, ẋ, ẏ): rest goals for point-to-point, moving
+            goals (cruise velocities) for surveillance.
+        loops : int
+            How many times to go through ``goals``.
+        disturbances : sequence of Push, BodyForce, StateJump, Drag
+            In episode time.
+        options : ExecutionOptions, optional
+
+        Raises
+        ------
+        PlanningError
+            A goal is impossible, or the first goal is unreachable from the start.
+        """
+        options = options if options is not None else ExecutionOptions()
+        if loops < 1:
+            raise ConfigError(f"loops must be >= 1, got {loops!r}")
+        if not goals:
+            raise ConfigError("a task needs at least one goal")
+        goal_ids = [self.goal_policy(g) for g in goals]
+        sequence = goal_ids * loops
+        goal_states = [np.asarray(g, dtype=float) for g in goals] * loops
+        dt = 1.0 / 1024.0
+        r = self.params.ball_radius
+        x = np.asarray(x0, dtype=float).copy()
+        p = position_state(x, r)
+        k_goal = 0
+        tree = self.tree(sequence[0])
+        current = self.best_policy(p, tree)
+        if current < 0:
+            hits = self.library.start_domain_contains(p[None, :])
+            why = (
+                "no library policy's start domain contains the start state (outside coverage)"
+                if hits.nnz == 0
+                else "the goal cannot be reached from any policy whose start domain contains it"
+            )
+            raise PlanningError(f"start {tuple(np.round(p, 3))}: {why}")
+        chunks_t: list[FloatArray] = []
+        chunks_x: list[FloatArray] = []
+        chunks_u: list[FloatArray] = []
+        chunks_pol: list[IntArray] = []
+        chunks_ref: list[FloatArray] = []
+        events = [SwitchEvent(0.0, -1, current, EventReason.START, 0)]
+        goals_reached: list[tuple[float, int]] = []
+        applied: set[int] = set()
+        t = 0.0
+        ticks = 0
+        status = TaskStatus.TIMEOUT
+        while True:
+            inst = self.library.policy(current)
+            prim = inst.policy.primitive
+            ref, ref_pos = instantiated_reference(prim, inst.orientation, inst.start_xy, r)
+            centres = ref_pos[:, :4]
+            _, base_shapes = inst.policy.outer_monitor()
+            rot = np.zeros((4, 4))
+            rot[:2, :2] = rot[2:, 2:] = inst.rotation
+            shapes = rot @ base_shapes @ rot.T
+            is_goal = current == sequence[k_goal]
+            if is_goal and k_goal + 1 < len(sequence):
+                # Regenerate the tree for the next goal while the last policy to the
+                # current goal runs (paper Sec. V-C).
+                self.tree(sequence[k_goal + 1])
+            local, inst_idx = _segment_disturbances(disturbances, t, dt, prim.num_ticks, applied)
+            res = simulate(
+                x,
+                ref,
+                self.gains,
+                params=self.params,
+                plant=options.plant,
+                disturbances=local,
+                options=options.simulation,
+                monitor=(np.ascontiguousarray(centres), np.ascontiguousarray(shapes)),
+                stop_on_exit=True,
+            )
+            last = res.states.shape[0] - 1
+            for i in inst_idx:
+                if round((disturbances[i].time - t) / dt) <= last:  # type: ignore[union-attr]
+                    applied.add(i)
+            chunks_t.append(t + res.time[:last])
+            chunks_x.append(res.states[:last])
+            chunks_u.append(res.inputs[:last])
+            chunks_pol.append(np.full(last, current, dtype=np.int64))
+            chunks_ref.append(ref_pos[:last])
+            t += last * dt
+            ticks += last
+            x = res.states[-1].copy()
+            p = position_state(x, r)
+            if res.stop_reason is StopReason.DOMAIN_EXIT:
+                reason = EventReason.DOMAIN_EXIT
+                nxt = self.best_policy(p, tree)
+            elif not inst.goal_domain.contains(p):
+                reason = EventReason.NOT_IN_GOAL
+                nxt = self.best_policy(p, tree)
+            elif is_goal:
+                goals_reached.append((t, k_goal))
+                if k_goal + 1 < len(sequence):
+                    k_goal += 1
+                    tree = self.tree(sequence[k_goal])
+                    reason = EventReason.NEW_GOAL
+                    nxt = int(tree.next_policy[current])
+                    if nxt < 0 or not self.library.policy(nxt).start_domain.contains(p):
+                        nxt = self.best_policy(p, tree)
+                        reason = EventReason.NOT_IN_GOAL
+                elif loops > 1 or inst.kind is PrimitiveKind.CRUISE:
+                    status = TaskStatus.LOOPS_COMPLETED
+                    break
+                else:
+                    g = goal_states[k_goal]
+                    if (
+                        np.linalg.norm(p[:2] - g[:2]) <= options.goal_tolerance
+                        and np.linalg.norm(p[2:] - g[2:]) <= options.goal_tolerance
+                    ):
+                        status = TaskStatus.GOAL_REACHED
+                        break
+                    reason, nxt = EventReason.HOLD_GOAL, current
+            else:
+                reason = EventReason.GRACEFUL
+                nxt = int(tree.next_policy[current])
+                if nxt < 0 or not self.library.policy(nxt).start_domain.contains(p):
+                    nxt = self.best_policy(p, tree)
+                    reason = EventReason.NOT_IN_GOAL
+            if t >= options.max_time:
+                status = TaskStatus.TIMEOUT
+                break
+            if nxt < 0:
+                events.append(SwitchEvent(t, current, -1, EventReason.BALANCING, ticks))
+                status = TaskStatus.NO_POLICY
+                hold = Reference.hold(p[:2], options.balance_time, params=self.params)
+                local, _ = _segment_disturbances(disturbances, t, dt, hold.num_ticks, applied)
+                bal = simulate(
+                    x,
+                    hold,
+                    self.gains,
+                    params=self.params,
+                    plant=options.plant,
+                    disturbances=local,
+                    options=options.simulation,
+                )
+                n = bal.states.shape[0] - 1
+                chunks_t.append(t + bal.time[:n])
+                chunks_x.append(bal.states[:n])
+                chunks_u.append(bal.inputs[:n])
+                chunks_pol.append(np.full(n, -1, dtype=np.int64))
+                hold_ref = np.zeros((n, 6))
+                hold_ref[:, :2] = p[:2]
+                chunks_ref.append(hold_ref)
+                t += n * dt
+                ticks += n
+                x = bal.states[-1].copy()
+                break
+            events.append(SwitchEvent(t, current, nxt, reason, ticks))
+            current = nxt
+        # the final state
+        chunks_t.append(np.array([t]))
+        chunks_x.append(x[None, :])
+        chunks_u.append(chunks_u[-1][-1:] if chunks_u and chunks_u[-1].size else np.zeros((1, 2)))
+        chunks_pol.append(chunks_pol[-1][-1:] if chunks_pol else np.array([-1]))
+        chunks_ref.append(chunks_ref[-1][-1:] if chunks_ref else np.zeros((1, 6)))
+        return Episode(
+            time=np.concatenate(chunks_t),
+            states=np.concatenate(chunks_x),
+            inputs=np.concatenate(chunks_u),
+            policy=np.concatenate(chunks_pol),
+            reference=np.concatenate(chunks_ref),
+            events=tuple(events),
+            status=status,
+            goals_reached=tuple(goals_reached),
+            tree_seconds=tuple(self.tree_seconds),
+            radius=r,
+        )
