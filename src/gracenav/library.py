@@ -1,0 +1,1088 @@
+"""Automatic instantiation of motion policies: the motion policy library L(Π, M).
+
+Paper Sec. IV-A. The dynamics of the ballbot are invariant to translations and
+rotations of its position variables, so every policy of the palette Π can be
+placed anywhere on the map M in any orientation. Instantiation points are the
+nodes of a square lattice of spacing d (the palette's distance parameter) along
+X and Y, anchored at the map's minimum corner; each palette policy is placed at
+each point in the four orientations k · 90° (k = 0..3, counter-clockwise about
+the policy's start). An instantiation is kept iff its outer domain D'(t),
+projected on the XY plane and swept over [0, t_f], grown by the robot's
+footprint, is obstacle free and inside the map.
+
+Coverage is the fraction of uniformly sampled position states of the bounded
+position state space (free positions with clearance >= footprint, velocities
+uniform in [-v_max, v_max]², v_max the largest trim speed of the palette) that
+lie in at least one instantiated start domain S. Below the target, the lattice
+spacing is halved (d/2, d/4, ...) and instantiation repeats, up to a limit.
+
+Library data are columnar numpy arrays, one row per instantiated policy, in
+*type* order: type t = 4 p + k (palette policy p at orientation k), then
+instantiation point (row-major on the lattice). Orientation k rotates
+positions, velocities, accelerations and the body lean (a vector toward the
+direction of motion) by the exact quarter-turn matrix :func:`quarter_turn`.
+Domains are round in position and in velocity, so they rotate trivially.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy import sparse
+
+from gracenav.domains import EllipsoidalDomain
+from gracenav.errors import ConfigError, MapError
+from gracenav.maps import WorldMap
+from gracenav.model.indices import PHI, PHI_X_DOT, PHI_Y_DOT
+from gracenav.palette import Palette
+from gracenav.policies import MotionPolicy, PrimitiveKind
+
+__all__ = [
+    "DEFAULT_COVERAGE_SAMPLES",
+    "ORIENTATIONS",
+    "InstantiatedPolicy",
+    "InstantiationIteration",
+    "PolicyLibrary",
+    "PolicyTypes",
+    "build_library",
+    "quarter_turn",
+]
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
+
+#: Orientations of instantiation: k · 90° for k = 0..3.
+ORIENTATIONS = 4
+#: Default number of position states sampled to estimate coverage (standard error
+#: below 0.5 percentage points).
+DEFAULT_COVERAGE_SAMPLES = 10_000
+
+_QUARTER_TURNS = np.array(
+    [
+        [[1.0, 0.0], [0.0, 1.0]],
+        [[0.0, -1.0], [1.0, 0.0]],
+        [[-1.0, 0.0], [0.0, -1.0]],
+        [[0.0, 1.0], [-1.0, 0.0]],
+    ]
+)
+_QUARTER_TURNS.setflags(write=False)
+_GROUP = 8  # checked sweep samples per bounding disc of the hierarchical sweep check
+_CHUNK = 1 << 19  # clearance queries evaluated at once
+_LATTICE_EPS = 1e-9  # relative slack when counting lattice points across the map
+
+
+def quarter_turn(k: int) -> FloatArray:
+    """Exact rotation matrix by k · 90° counter-clockwise, shape (2, 2).
+
+    Entries are exactly 0 and ±1, so rotated states compare exactly.
+    """
+    return np.array(_QUARTER_TURNS[int(k) % ORIENTATIONS])
+
+
+def _readonly(a: NDArray[Any]) -> NDArray[Any]:
+    a = np.ascontiguousarray(a)
+    a.setflags(write=False)
+    return a
+
+
+def _ramp(counts: IntArray) -> IntArray:
+    """0, 1, ..., c_i − 1 for each count c_i, concatenated (shape (sum(counts),))."""
+    total = int(counts.sum())
+    starts = np.cumsum(counts) - counts
+    out: IntArray = np.arange(total, dtype=np.int64) - np.repeat(starts, counts)
+    return out
+
+
+def _rotate(vectors: FloatArray, k: int) -> FloatArray:
+    """Rotate (..., 2) vectors by k · 90°."""
+    out: FloatArray = vectors @ _QUARTER_TURNS[k].T
+    return out
+
+
+# --------------------------------------------------------------------------------------
+# The palette at every orientation
+# --------------------------------------------------------------------------------------
+
+
+def _axis_shape(policy: MotionPolicy, domain: EllipsoidalDomain, which: str) -> FloatArray:
+    """The 2 × 2 per-axis shape M of a domain whose shape matrix is M ⊗ I₂."""
+    p = np.asarray(domain.shape_matrix, dtype=float)
+    m = p[::2, ::2]
+    expected = np.zeros((4, 4))
+    expected[::2, ::2] = expected[1::2, 1::2] = m
+    if np.max(np.abs(p - expected)) > 1e-9 * np.max(np.abs(p)):
+        raise ConfigError(
+            f"palette policy {policy.name!r}: its {which} domain is not invariant under "
+            "rotations of the plane (shape matrix not of the form M ⊗ I₂ in (x, y, ẋ, ẏ)); "
+            "instantiation at 90° steps needs such domains"
+        )
+    return m
+
+
+@dataclass(frozen=True)
+class PolicyTypes:
+    """The palette's policies at the four orientations: 4 P *types*, t = 4 p + k.
+
+    Every vector is in the world orientation of the type (rotated by k · 90°) and
+    relative to the instantiation point.
+
+    Attributes
+    ----------
+    palette_index, orientation : ndarray of int, shape (T,)
+        p and k of each type.
+    start_velocity, end_velocity : ndarray, shape (T, 2)
+        Reference ball velocity at t = 0 and t_f (m/s).
+    start_acceleration, end_acceleration : ndarray, shape (T, 2)
+        Reference ball acceleration at t = 0 and t_f (m/s²).
+    start_lean, end_lean : ndarray, shape (T, 2)
+        Reference body lean (φ_x, φ_y) at t = 0 and t_f (rad).
+    start_lean_rate, end_lean_rate : ndarray, shape (T, 2)
+        Reference lean rate at t = 0 and t_f (rad/s).
+    end_offset : ndarray, shape (T, 2)
+        Reference ball position at t_f minus the one at t = 0 (m).
+    start_radii, goal_radii : ndarray, shape (T, 2)
+        (position (m), velocity (m/s)) extents of S and G.
+    start_shape, goal_shape : ndarray, shape (T, 2, 2)
+        Per-axis shape matrix M of S and G: the domain is {z : zᵀ (M ⊗ I₂) z <= 1} for
+        z = (x, y, ẋ, ẏ) minus the centre (M in 1/m², 1/(m·m/s), 1/(m/s)²). Such
+        domains are invariant under rotations of the plane.
+    start_xy_radius : ndarray, shape (T,)
+        Radius of the XY projection of S (m).
+    duration : ndarray, shape (T,)
+        t_f (s).
+    path_length : ndarray, shape (T,)
+        XY length of the reference path (m).
+    is_trim : ndarray of bool, shape (T,)
+    """
+
+    palette_index: IntArray
+    orientation: IntArray
+    start_velocity: FloatArray
+    end_velocity: FloatArray
+    start_acceleration: FloatArray
+    end_acceleration: FloatArray
+    start_lean: FloatArray
+    end_lean: FloatArray
+    start_lean_rate: FloatArray
+    end_lean_rate: FloatArray
+    end_offset: FloatArray
+    start_radii: FloatArray
+    goal_radii: FloatArray
+    start_shape: FloatArray
+    goal_shape: FloatArray
+    start_xy_radius: FloatArray
+    duration: FloatArray
+    path_length: FloatArray
+    is_trim: BoolArray
+
+    def __len__(self) -> int:
+        return int(self.palette_index.shape[0])
+
+    @classmethod
+    def from_palette(cls, palette: Palette) -> PolicyTypes:
+        """Tabulate ``palette``'s policies at the four orientations."""
+        pols = palette.policies
+        n = len(pols)
+        first = np.array([p.primitive.position[0] for p in pols]).reshape(n, 6)
+        last = np.array([p.primitive.position[-1] for p in pols]).reshape(n, 6)
+        st0 = np.array([p.primitive.states[0] for p in pols]).reshape(n, 8)
+        st1 = np.array([p.primitive.states[-1] for p in pols]).reshape(n, 8)
+        rate = [PHI_X_DOT, PHI_Y_DOT]
+        m_start = np.array([_axis_shape(p, p.start_domain, "start") for p in pols])
+        m_goal = np.array([_axis_shape(p, p.goal_domain, "goal") for p in pols])
+        lengths = np.array(
+            [np.sum(np.hypot(*np.diff(p.primitive.position[:, :2], axis=0).T)) for p in pols]
+        )
+        rot = _QUARTER_TURNS  # (4, 2, 2)
+
+        def turn(v: FloatArray) -> FloatArray:
+            """(P, 2) vectors at the 4 orientations, type-major: shape (4 P, 2)."""
+            out: FloatArray = np.einsum("kij,pj->pki", rot, v).reshape(-1, 2)
+            return out
+
+        def per_type(v: NDArray[Any]) -> NDArray[Any]:
+            return np.repeat(v, ORIENTATIONS, axis=0)
+
+        arrays: dict[str, NDArray[Any]] = {
+            "palette_index": per_type(np.arange(n, dtype=np.int64)),
+            "orientation": np.tile(np.arange(ORIENTATIONS, dtype=np.int64), n),
+            "start_velocity": turn(first[:, 2:4]),
+            "end_velocity": turn(last[:, 2:4]),
+            "start_acceleration": turn(first[:, 4:6]),
+            "end_acceleration": turn(last[:, 4:6]),
+            "start_lean": turn(st0[:, PHI]),
+            "end_lean": turn(st1[:, PHI]),
+            "start_lean_rate": turn(st0[:, rate]),
+            "end_lean_rate": turn(st1[:, rate]),
+            "end_offset": turn(last[:, :2] - first[:, :2]),
+            "start_radii": per_type(
+                np.array([[p.start_radii.position, p.start_radii.velocity] for p in pols])
+            ).reshape(-1, 2),
+            "goal_radii": per_type(
+                np.array([[p.goal_radii.position, p.goal_radii.velocity] for p in pols])
+            ).reshape(-1, 2),
+            "start_shape": per_type(m_start).reshape(-1, 2, 2),
+            "goal_shape": per_type(m_goal).reshape(-1, 2, 2),
+            "start_xy_radius": per_type(
+                1.0 / np.sqrt(m_start[:, 0, 0] - m_start[:, 0, 1] ** 2 / m_start[:, 1, 1])
+            ),
+            "duration": per_type(np.array([p.duration for p in pols], dtype=float)),
+            "path_length": per_type(lengths),
+            "is_trim": per_type(np.array([p.primitive.is_trim for p in pols], dtype=bool)),
+        }
+        return cls(**{k: _readonly(v) for k, v in arrays.items()})
+
+    def boundary(self, which: str) -> FloatArray:
+        """Reference boundary states at ``which`` = "start" or "end": velocity,
+        acceleration, lean, lean rate, shape (T, 8) (m/s, m/s², rad, rad/s)."""
+        if which not in ("start", "end"):
+            raise ConfigError(f"boundary must be 'start' or 'end', got {which!r}")
+        names = ("velocity", "acceleration", "lean", "lean_rate")
+        return np.concatenate([getattr(self, f"{which}_{n}") for n in names], axis=1)
+
+
+# --------------------------------------------------------------------------------------
+# Instantiated policies and iterations
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class InstantiationIteration:
+    """One pass of instantiation at one lattice spacing.
+
+    Attributes
+    ----------
+    spacing : float
+        Lattice spacing (m): d / 2^h at halving h.
+    size : int
+        Number of valid instantiations (library policies).
+    coverage : float
+        Estimated fraction of the bounded position state space covered by start domains.
+    seconds : float
+        Wall time of the pass (instantiation and coverage estimate) (s).
+    """
+
+    spacing: float
+    size: int
+    coverage: float
+    seconds: float
+
+
+@dataclass(frozen=True)
+class InstantiatedPolicy:
+    """A palette policy placed on the map: a view of one library row, in the world frame.
+
+    Attributes
+    ----------
+    index : int
+        Row in the library.
+    policy : MotionPolicy
+        The palette policy (in its own frame).
+    palette_index : int
+    orientation : int
+        k: the policy is rotated by k · 90° counter-clockwise about its start.
+    start_xy : ndarray, shape (2,)
+        Instantiation point (m): where the reference starts.
+    """
+
+    index: int
+    policy: MotionPolicy
+    palette_index: int
+    orientation: int
+    start_xy: FloatArray
+
+    @property
+    def name(self) -> str:
+        """Palette name, orientation and instantiation point, e.g. ``rest@90°(1, 0.5)``."""
+        x, y = self.start_xy
+        return f"{self.policy.name}@{90 * self.orientation}°({x:g}, {y:g})"
+
+    @property
+    def angle(self) -> float:
+        """Orientation (rad), counter-clockwise from the palette's frame."""
+        return 0.5 * math.pi * self.orientation
+
+    @property
+    def rotation(self) -> FloatArray:
+        """Exact rotation (2, 2) from the policy's frame to the world."""
+        return quarter_turn(self.orientation)
+
+    @property
+    def duration(self) -> float:
+        """t_f (s)."""
+        return self.policy.duration
+
+    @property
+    def kind(self) -> PrimitiveKind:
+        """Rest trim, cruise trim or maneuver."""
+        return self.policy.primitive.kind
+
+    @property
+    def is_trim(self) -> bool:
+        """Whether the primitive is a trim."""
+        return self.policy.primitive.is_trim
+
+    def _to_world(self, local: FloatArray) -> FloatArray:
+        """Position states (..., 4) of the policy's frame in the world frame."""
+        r = self.rotation
+        out = np.empty_like(local)
+        out[..., :2] = local[..., :2] @ r.T + self.start_xy
+        out[..., 2:4] = local[..., 2:4] @ r.T
+        return out
+
+    def _domain(self, local: EllipsoidalDomain) -> EllipsoidalDomain:
+        r4 = np.zeros((4, 4))
+        r4[:2, :2] = r4[2:, 2:] = self.rotation
+        centre = self._to_world(np.asarray(local.center, dtype=float))
+        return EllipsoidalDomain(centre, r4 @ local.shape_matrix @ r4.T)
+
+    def domain(self, t: float) -> EllipsoidalDomain:
+        """D(t) in the world frame (t in s, clamped to [0, t_f])."""
+        return self._domain(self.policy.domain(t))
+
+    def outer_domain(self, t: float) -> EllipsoidalDomain:
+        """D'(t) in the world frame."""
+        return self._domain(self.policy.outer_domain(t))
+
+    @property
+    def start_domain(self) -> EllipsoidalDomain:
+        """S = D(0) in the world frame."""
+        return self.domain(0.0)
+
+    @property
+    def goal_domain(self) -> EllipsoidalDomain:
+        """G = D(t_f) in the world frame."""
+        return self.domain(self.policy.duration)
+
+    def position_state(self, t: ArrayLike) -> FloatArray:
+        """Reference position state (x, y, ẋ, ẏ) at times ``t`` (s) in the world frame,
+        shape (..., 4) (m, m/s)."""
+        return self._to_world(self.policy.primitive.position_state(t))
+
+    @property
+    def reference_positions(self) -> FloatArray:
+        """Reference x, y, ẋ, ẏ, ẍ, ÿ at the control ticks in the world frame, shape
+        (T + 1, 6) (m, m/s, m/s²)."""
+        pos = self.policy.primitive.position
+        r = self.rotation
+        out = np.empty_like(pos)
+        out[:, :2] = pos[:, :2] @ r.T + self.start_xy
+        out[:, 2:4] = pos[:, 2:4] @ r.T
+        out[:, 4:6] = pos[:, 4:6] @ r.T
+        return out
+
+    @property
+    def reference_lean(self) -> FloatArray:
+        """Reference body lean (φ_x, φ_y) and lean rate at the ticks in the world frame,
+        shape (T + 1, 4) (rad, rad/s)."""
+        st = self.policy.primitive.states
+        r = self.rotation
+        return np.concatenate([st[:, PHI] @ r.T, st[:, [PHI_X_DOT, PHI_Y_DOT]] @ r.T], axis=1)
+
+    @property
+    def path_length(self) -> float:
+        """XY length of the reference path (m)."""
+        pos = self.policy.primitive.position[:, :2]
+        return float(np.sum(np.hypot(*np.diff(pos, axis=0).T)))
+
+
+@dataclass(frozen=True)
+class _StartIndex:
+    """Spatial hash of start domains: library rows grouped by (start class, lattice point)."""
+
+    class_velocity: FloatArray  # (C, 2) centre velocity of S
+    class_shape: FloatArray  # (C, 3) a, b, c of the per-axis shape [[a, b], [b, c]]
+    keys: IntArray  # (G,) sorted unique class * n_points + point
+    group_start: IntArray  # (G + 1,) into order
+    order: IntArray  # (N,) library rows sorted by key
+
+
+# --------------------------------------------------------------------------------------
+# The library
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class PolicyLibrary:
+    """The motion policy library L(Π, M): every valid instantiation of the palette on a map.
+
+    Rows are library policies in type order (type t = 4 p + k, then lattice point
+    row-major). Arrays are read-only.
+
+    Attributes
+    ----------
+    palette : Palette
+    world_map : WorldMap
+    footprint_radius : float
+        Robot footprint radius (m) the swept outer domains were grown by.
+    spacing : float
+        Lattice spacing of the instantiation points (m).
+    lattice_shape : tuple of int
+        (ny, nx): instantiation points along y and x; point (ix, iy) is at
+        ``origin + spacing · (ix, iy)``.
+    origin : ndarray, shape (2,)
+        Lattice origin: the map's minimum corner (m).
+    types : PolicyTypes
+        The palette at the four orientations.
+    palette_index : ndarray of int, shape (N,)
+    orientation : ndarray of int, shape (N,)
+        k of each policy: rotation by k · 90°.
+    start_cell : ndarray of int, shape (N, 2)
+        Lattice indices (ix, iy) of the instantiation point.
+    start_xy : ndarray, shape (N, 2)
+        Instantiation point (m).
+    start_state, end_state : ndarray, shape (N, 4)
+        Reference position state (x, y, ẋ, ẏ) at t = 0 and t_f in the world frame
+        (m, m/s): the centres of S and G.
+    durations : ndarray, shape (N,)
+        t_f (s).
+    path_lengths : ndarray, shape (N,)
+        XY length of the reference path (m).
+    coverage : float
+        Estimated coverage of the final iteration, in [0, 1].
+    iterations : tuple of InstantiationIteration
+        One record per lattice spacing tried, the last being this library's.
+    sweep_step : float
+        Largest arc length (m) between checked samples of the swept outer domains
+        (plus at most one control tick of motion).
+    """
+
+    palette: Palette
+    world_map: WorldMap
+    footprint_radius: float
+    spacing: float
+    lattice_shape: tuple[int, int]
+    origin: FloatArray
+    types: PolicyTypes
+    palette_index: IntArray
+    orientation: IntArray
+    start_cell: IntArray
+    start_xy: FloatArray
+    start_state: FloatArray
+    end_state: FloatArray
+    durations: FloatArray
+    path_lengths: FloatArray
+    coverage: float = float("nan")
+    iterations: tuple[InstantiationIteration, ...] = ()
+    sweep_step: float = 0.0
+    _cache: dict[str, Any] = field(default_factory=dict, init=False, repr=False)
+
+    def __len__(self) -> int:
+        return int(self.palette_index.shape[0])
+
+    def __repr__(self) -> str:
+        return (
+            f"PolicyLibrary({len(self)} policies from {len(self.palette)} palette policies on "
+            f"{self.world_map.name!r}, spacing {self.spacing:g} m, coverage {self.coverage:.3f})"
+        )
+
+    @property
+    def type_index(self) -> IntArray:
+        """Type t = 4 p + k of each policy, shape (N,)."""
+        return self.palette_index * ORIENTATIONS + self.orientation
+
+    @property
+    def point_index(self) -> IntArray:
+        """Lattice point id iy · nx + ix of each policy's start, shape (N,)."""
+        nx = self.lattice_shape[1]
+        out: IntArray = self.start_cell[:, 1] * nx + self.start_cell[:, 0]
+        return out
+
+    def policy(self, i: int) -> InstantiatedPolicy:
+        """The instantiated view of library row ``i`` (world-frame domains and reference)."""
+        n = len(self)
+        if not -n <= i < n:
+            raise IndexError(f"library policy {i} out of range for a library of {n} policies")
+        i = int(i) % n
+        p = int(self.palette_index[i])
+        return InstantiatedPolicy(
+            index=i,
+            policy=self.palette.policies[p],
+            palette_index=p,
+            orientation=int(self.orientation[i]),
+            start_xy=np.array(self.start_xy[i]),
+        )
+
+    def trim_indices(self, kind: PrimitiveKind | None = None) -> IntArray:
+        """Rows whose primitive is a trim (or of trim ``kind``: REST or CRUISE), shape (n,)."""
+        if kind is None:
+            wanted = np.array([p.primitive.is_trim for p in self.palette.policies], dtype=bool)
+        else:
+            if kind is PrimitiveKind.MANEUVER:
+                raise ConfigError("trim_indices: kind must be REST, CRUISE or None, not MANEUVER")
+            wanted = np.array([p.primitive.kind is kind for p in self.palette.policies], dtype=bool)
+        if wanted.size == 0:
+            return np.zeros(0, dtype=np.int64)
+        return np.flatnonzero(wanted[self.palette_index]).astype(np.int64)
+
+    # -- start domain queries --------------------------------------------------------
+
+    def _start_index(self) -> _StartIndex:
+        idx = self._cache.get("start_index")
+        if idx is None:
+            types = self.types
+            m = types.start_shape
+            rows = np.column_stack([types.start_velocity, m[:, 0, 0], m[:, 0, 1], m[:, 1, 1]])
+            cls_rows, type_class = np.unique(rows, axis=0, return_inverse=True)
+            type_class = type_class.reshape(-1)
+            n_points = self.lattice_shape[0] * self.lattice_shape[1]
+            key = type_class[self.type_index].astype(np.int64) * n_points + self.point_index
+            order = np.argsort(key, kind="stable")
+            keys, first = np.unique(key[order], return_index=True)
+            idx = _StartIndex(
+                class_velocity=_readonly(cls_rows[:, :2]),
+                class_shape=_readonly(cls_rows[:, 2:]),
+                keys=_readonly(keys.astype(np.int64)),
+                group_start=_readonly(np.append(first, len(order)).astype(np.int64)),
+                order=_readonly(order.astype(np.int64)),
+            )
+            self._cache["start_index"] = idx
+        result: _StartIndex = idx
+        return result
+
+    def _hits(self, points: FloatArray, *, any_only: bool = False) -> tuple[IntArray, IntArray]:
+        """(query row, group) pairs where the group's start domain contains the point.
+
+        With per-axis shape [[a, b], [b, c]], position offset e = x − q and velocity
+        offset u = v − v_S, the value is a|e|² + 2b e·u + c|u|²
+        = a|e + (b/a) u|² + (c − b²/a)|u|². For one start class (velocity and shape)
+        the positions inside form a disc around x + (b/a) u of radius
+        √((1 − (c − b²/a)|u|²)/a): only lattice points in its bounding box are looked
+        up. With ``any_only`` a query already hit is not looked up again (for
+        coverage: at least one pair per covered query, not all).
+        """
+        idx = self._start_index()
+        m = points.shape[0]
+        if m == 0 or len(self) == 0:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64)
+        s = self.spacing
+        shapes = idx.class_shape
+        # Queries per chunk: bound the lattice candidates (bounding boxes) held at once.
+        box = (2.0 / np.sqrt(shapes[:, 0].min()) / s + 2.0) ** 2
+        rows = max(1024, int(_CHUNK // box))
+        out_q: list[IntArray] = []
+        out_g: list[IntArray] = []
+        for lo in range(0, m, rows):
+            q, g = self._hits_chunk(points[lo : lo + rows], any_only)
+            out_q.append(q + lo)
+            out_g.append(g)
+        return np.concatenate(out_q), np.concatenate(out_g)
+
+    def _hits_chunk(self, points: FloatArray, any_only: bool) -> tuple[IntArray, IntArray]:
+        idx = self._start_index()
+        ny, nx = self.lattice_shape
+        s = self.spacing
+        x0, y0 = float(self.origin[0]), float(self.origin[1])
+        px, py, vx, vy = points.T
+        todo = np.ones(points.shape[0], dtype=bool)
+        out_q: list[IntArray] = []
+        out_g: list[IntArray] = []
+        # Largest classes first: with any_only they settle the most queries early.
+        shapes = idx.class_shape
+        order = np.argsort(shapes[:, 0] - shapes[:, 1] ** 2 / shapes[:, 2])
+        for ci in order:
+            a, b, c = (float(v) for v in shapes[ci])
+            schur = c - b * b / a
+            cvx, cvy = idx.class_velocity[ci]
+            ux, uy = vx - cvx, vy - cvy
+            uu = ux * ux + uy * uy
+            feasible = uu * schur <= 1.0
+            if any_only:
+                feasible &= todo
+            qq = np.flatnonzero(feasible)
+            if qq.size == 0:
+                continue
+            ux, uy, uu = ux[qq], uy[qq], uu[qq]
+            r = np.sqrt(np.maximum(1.0 - uu * schur, 0.0) / a)
+            cx = px[qq] + (b / a) * ux
+            cy = py[qq] + (b / a) * uy
+            ix0 = np.maximum(np.ceil((cx - r - x0) / s - _LATTICE_EPS), 0).astype(np.int64)
+            ix1 = np.minimum(np.floor((cx + r - x0) / s + _LATTICE_EPS), nx - 1).astype(np.int64)
+            iy0 = np.maximum(np.ceil((cy - r - y0) / s - _LATTICE_EPS), 0).astype(np.int64)
+            iy1 = np.minimum(np.floor((cy + r - y0) / s + _LATTICE_EPS), ny - 1).astype(np.int64)
+            wx = np.maximum(ix1 - ix0 + 1, 0)
+            counts = wx * np.maximum(iy1 - iy0 + 1, 0)
+            pair = np.repeat(np.arange(qq.size), counts)
+            ramp = _ramp(counts)
+            ix = ix0[pair] + ramp % wx[pair]
+            iy = iy0[pair] + ramp // wx[pair]
+            q = qq[pair]
+            ex = px[q] - (x0 + ix * s)
+            ey = py[q] - (y0 + iy * s)
+            upx, upy = ux[pair], uy[pair]
+            value = a * (ex * ex + ey * ey) + 2.0 * b * (ex * upx + ey * upy) + c * uu[pair]
+            inside = value <= 1.0
+            key = (int(ci) * (nx * ny)) + iy[inside] * nx + ix[inside]
+            q = q[inside]
+            pos = np.searchsorted(idx.keys, key)
+            pos_c = np.minimum(pos, idx.keys.size - 1)
+            found = (pos < idx.keys.size) & (idx.keys[pos_c] == key)
+            out_q.append(q[found])
+            out_g.append(pos[found])
+            if any_only:
+                todo[q[found]] = False
+        if not out_q:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64)
+        return np.concatenate(out_q), np.concatenate(out_g)
+
+    def start_domain_covers(self, points: ArrayLike) -> BoolArray:
+        """Whether each position state lies in at least one start domain S.
+
+        Parameters
+        ----------
+        points : array_like, shape (M, 4)
+            Position states (x, y, ẋ, ẏ) (m, m/s).
+
+        Returns
+        -------
+        ndarray of bool, shape (M,)
+        """
+        p = _as_states(points)
+        covered = np.zeros(p.shape[0], dtype=bool)
+        q, _ = self._hits(p, any_only=True)
+        covered[q] = True
+        return covered
+
+    def start_domain_contains(self, points: ArrayLike) -> sparse.csr_matrix:
+        """Which library policies' start domains S contain each position state.
+
+        A spatial hash of the start domains (grouped by start velocity, radii and
+        lattice point) limits the candidates of each point to the lattice points
+        within reach: the cost grows with the number of hits, not with M · N.
+
+        Parameters
+        ----------
+        points : array_like, shape (M, 4)
+            Position states (x, y, ẋ, ẏ) (m, m/s).
+
+        Returns
+        -------
+        scipy.sparse.csr_matrix of bool, shape (M, N)
+            Entry (m, i) is True iff S of policy i contains point m (boundary
+            included); ``.indices[.indptr[m]:.indptr[m + 1]]`` lists them.
+        """
+        p = _as_states(points)
+        idx = self._start_index()
+        q, g = self._hits(p)
+        counts = idx.group_start[g + 1] - idx.group_start[g]
+        rows = np.repeat(q, counts)
+        cols = idx.order[np.repeat(idx.group_start[g], counts) + _ramp(counts)]
+        data = np.ones(rows.size, dtype=bool)
+        return sparse.csr_matrix((data, (rows, cols)), shape=(p.shape[0], len(self)))
+
+
+def _as_states(points: ArrayLike) -> FloatArray:
+    p = np.asarray(points, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 4:
+        raise ConfigError(
+            f"position states must have shape (M, 4) holding (x, y, ẋ, ẏ), got {p.shape}"
+        )
+    return p
+
+
+# --------------------------------------------------------------------------------------
+# Swept outer domains
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Sweep:
+    """Checked samples of one palette policy's swept D' (policy frame, footprint excluded).
+
+    A sample j at offset c_j needs clearance(q + c_j) >= footprint + reach_j.
+    Groups of consecutive samples are bounded by discs (centre, reach).
+    """
+
+    offsets: FloatArray  # (K, 2)
+    reach: FloatArray  # (K,)
+    group_centre: FloatArray  # (Gp, 2)
+    group_reach: FloatArray  # (Gp,)
+    group_first: IntArray  # (Gp,) first sample
+    group_size: IntArray  # (Gp,)
+    total_reach: float  # bound around the start point
+
+
+def _sweep(policy: MotionPolicy, step: float) -> _Sweep:
+    """Select reference samples at most ``step`` of arc (plus one tick) apart and the
+    conservative reach of D' around each (see :func:`build_library`)."""
+    prim = policy.primitive
+    cp = policy.outer_factors[0]
+    pos = prim.position[:, :2] - prim.position[0, :2]
+    seg = np.hypot(*np.diff(pos, axis=0).T)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    n_ticks = pos.shape[0] - 1
+    targets = np.arange(int(cum[-1] // step) + 2) * step
+    picked = np.clip(np.searchsorted(cum, targets, side="right") - 1, 0, n_ticks)
+    sel = np.unique(np.concatenate([[0], picked, [n_ticks]]))
+    rp, _ = policy.radii(sel * prim.dt)
+    outer = np.asarray(rp, dtype=float) * cp
+    reach = outer.copy()
+    if sel.size > 1:
+        seg_reach = np.maximum(outer[:-1], outer[1:]) + 0.5 * np.diff(cum[sel])
+        reach[:-1] = np.maximum(reach[:-1], seg_reach)
+        reach[1:] = np.maximum(reach[1:], seg_reach)
+    offsets = pos[sel]
+    first = np.arange(0, sel.size, _GROUP, dtype=np.int64)
+    size = np.minimum(_GROUP, sel.size - first)
+    centres = 0.5 * (
+        np.minimum.reduceat(offsets, first, axis=0) + np.maximum.reduceat(offsets, first, axis=0)
+    )
+    own = np.repeat(np.arange(first.size), size)
+    greach = np.maximum.reduceat(np.hypot(*(offsets - centres[own]).T) + reach, first)
+    total = float(np.max(np.hypot(*offsets.T) + reach))
+    return _Sweep(offsets, reach, centres, greach, first, size, total)
+
+
+def _lattice(world_map: WorldMap, spacing: float) -> tuple[FloatArray, int, int, FloatArray]:
+    """Origin (2,), nx, ny and the points (ny · nx, 2) of the instantiation lattice."""
+    (x0, y0), (x1, y1) = world_map.bounds
+    nx = math.floor((x1 - x0) / spacing + _LATTICE_EPS) + 1
+    ny = math.floor((y1 - y0) / spacing + _LATTICE_EPS) + 1
+    origin = np.array([x0, y0])
+    ix = np.tile(np.arange(nx), ny)
+    iy = np.repeat(np.arange(ny), nx)
+    pts = np.column_stack([x0 + ix * spacing, y0 + iy * spacing])
+    return origin, nx, ny, pts
+
+
+def _check_sweeps(
+    world_map: WorldMap,
+    points: FloatArray,
+    pair_type: IntArray,
+    pair_point: IntArray,
+    tables: dict[str, NDArray[Any]],
+    footprint: float,
+) -> BoolArray:
+    """Validity of undecided (type, point) pairs: group discs first, samples where a
+    group disc is not clear."""
+    valid = np.ones(pair_type.size, dtype=bool)
+    g_first_of_type = tables["type_group_first"]
+    g_count_of_type = tables["type_group_count"]
+    step = max(1, _CHUNK // _GROUP)
+    for a in range(0, pair_type.size, step):
+        t = pair_type[a : a + step]
+        q = pair_point[a : a + step]
+        counts = g_count_of_type[t]
+        rep = np.repeat(np.arange(t.size), counts)
+        gid = g_first_of_type[t][rep] + _ramp(counts)
+        xy = points[q[rep]] + tables["group_centre"][gid]
+        ok = world_map.clearance(xy) >= footprint + tables["group_reach"][gid]
+        bad_g, bad_rep = gid[~ok], rep[~ok]
+        if bad_g.size == 0:
+            continue
+        ns = tables["group_size"][bad_g]
+        rep2 = np.repeat(np.arange(bad_g.size), ns)
+        sid = tables["group_sample_first"][bad_g][rep2] + _ramp(ns)
+        xy2 = points[q[bad_rep[rep2]]] + tables["sample_offset"][sid]
+        fail = world_map.clearance(xy2) < footprint + tables["sample_reach"][sid]
+        valid[a + bad_rep[rep2[fail]]] = False
+    return valid
+
+
+def _sweep_tables(sweeps: list[_Sweep]) -> dict[str, NDArray[Any]]:
+    """Concatenate the sweeps of every type (rotated) into flat tables."""
+    offs, reach, gc, gr, gsf, gsz, tgf, tgc, total = [], [], [], [], [], [], [], [], []
+    n_samples = n_groups = 0
+    for sw in sweeps:
+        for k in range(ORIENTATIONS):
+            offs.append(_rotate(sw.offsets, k))
+            reach.append(sw.reach)
+            gc.append(_rotate(sw.group_centre, k))
+            gr.append(sw.group_reach)
+            gsf.append(sw.group_first + n_samples)
+            gsz.append(sw.group_size)
+            tgf.append(n_groups)
+            tgc.append(sw.group_first.size)
+            total.append(sw.total_reach)
+            n_samples += sw.offsets.shape[0]
+            n_groups += sw.group_first.size
+    return {
+        "sample_offset": np.concatenate(offs),
+        "sample_reach": np.concatenate(reach),
+        "sample_first_reach": np.array([sw.reach[0] for sw in sweeps for _ in range(4)]),
+        "group_centre": np.concatenate(gc),
+        "group_reach": np.concatenate(gr),
+        "group_sample_first": np.concatenate(gsf).astype(np.int64),
+        "group_size": np.concatenate(gsz).astype(np.int64),
+        "type_group_first": np.array(tgf, dtype=np.int64),
+        "type_group_count": np.array(tgc, dtype=np.int64),
+        "type_total_reach": np.array(total),
+    }
+
+
+def _instantiate(
+    palette: Palette,
+    types: PolicyTypes,
+    tables: dict[str, NDArray[Any]],
+    world_map: WorldMap,
+    spacing: float,
+    footprint: float,
+    sweep_step: float,
+) -> PolicyLibrary:
+    origin, nx, ny, points = _lattice(world_map, spacing)
+    c0 = world_map.clearance(points)
+    accepted: list[IntArray] = []
+    undecided_t: list[IntArray] = []
+    undecided_q: list[IntArray] = []
+    n_types = len(types)
+    for t in range(n_types):
+        maybe = np.flatnonzero(c0 >= footprint + tables["sample_first_reach"][t])
+        sure = c0[maybe] >= footprint + tables["type_total_reach"][t]
+        accepted.append(maybe[sure])
+        rest = maybe[~sure]
+        undecided_q.append(rest)
+        undecided_t.append(np.full(rest.size, t, dtype=np.int64))
+    if n_types:
+        ut, uq = np.concatenate(undecided_t), np.concatenate(undecided_q)
+        ok = _check_sweeps(world_map, points, ut, uq, tables, footprint)
+        ut, uq = ut[ok], uq[ok]
+        # Merge per type, keeping type-major, point-ascending order.
+        sure_t = np.concatenate(
+            [np.full(a.size, t, dtype=np.int64) for t, a in enumerate(accepted)]
+        )
+        all_t = np.concatenate([sure_t, ut])
+        all_q = np.concatenate([np.concatenate(accepted), uq])
+        order = np.lexsort((all_q, all_t))
+        typ, pt = all_t[order], all_q[order]
+    else:
+        typ = pt = np.zeros(0, dtype=np.int64)
+    p_idx = types.palette_index[typ]
+    k_idx = types.orientation[typ]
+    cell = np.column_stack([pt % nx, pt // nx]).astype(np.int64)
+    start_xy = points[pt] if pt.size else np.zeros((0, 2))
+    start_state = np.concatenate([start_xy, types.start_velocity[typ]], axis=1)
+    end_state = np.concatenate([start_xy + types.end_offset[typ], types.end_velocity[typ]], axis=1)
+    return PolicyLibrary(
+        palette=palette,
+        world_map=world_map,
+        footprint_radius=footprint,
+        spacing=spacing,
+        lattice_shape=(ny, nx),
+        origin=_readonly(origin),
+        types=types,
+        palette_index=_readonly(p_idx),
+        orientation=_readonly(k_idx),
+        start_cell=_readonly(cell),
+        start_xy=_readonly(start_xy),
+        start_state=_readonly(start_state),
+        end_state=_readonly(end_state),
+        durations=_readonly(types.duration[typ]),
+        path_lengths=_readonly(types.path_length[typ]),
+        sweep_step=sweep_step,
+    )
+
+
+# --------------------------------------------------------------------------------------
+# Coverage
+# --------------------------------------------------------------------------------------
+
+
+def _max_trim_speed(palette: Palette) -> float:
+    speeds = [
+        float(np.hypot(*p.primitive.start_velocity))
+        for p in palette.policies
+        if p.primitive.is_trim
+    ]
+    return max(speeds, default=0.0)
+
+
+def _coverage_samples(
+    world_map: WorldMap, footprint: float, v_max: float, n: int, rng: np.random.Generator
+) -> FloatArray:
+    """``n`` position states uniform over {clearance >= footprint} × [−v_max, v_max]²."""
+    (x0, y0), (x1, y1) = world_map.bounds
+    got: list[FloatArray] = []
+    have = drawn = 0
+    budget = 200 * n
+    while have < n and drawn < budget:
+        batch = max(2 * (n - have), 1024)
+        xy = rng.uniform((x0, y0), (x1, y1), size=(batch, 2))
+        drawn += batch
+        keep = xy[world_map.clearance(xy) >= footprint]
+        got.append(keep)
+        have += keep.shape[0]
+    if have == 0:
+        raise MapError(
+            f"{world_map.source}: no free position has clearance >= footprint_radius "
+            f"{footprint:g} m, so there is nothing to cover; use a map with free space wider "
+            "than the robot or a smaller footprint_radius"
+        )
+    xy = np.concatenate(got)[:n]
+    v = rng.uniform(-v_max, v_max, size=(xy.shape[0], 2))
+    return np.concatenate([xy, v], axis=1)
+
+
+# --------------------------------------------------------------------------------------
+# Building
+# --------------------------------------------------------------------------------------
+
+
+def _check_inputs(
+    palette: Palette,
+    world_map: WorldMap,
+    footprint_radius: float,
+    coverage_target: float,
+    max_halvings: int,
+    coverage_samples: int,
+    sweep_step: float | None,
+) -> None:
+    if not isinstance(palette, Palette):
+        raise ConfigError(f"palette must be a Palette, got {type(palette).__name__}")
+    if not isinstance(world_map, WorldMap):
+        raise ConfigError(
+            f"world_map must be a WorldMap (see gracenav.maps.load_map), got "
+            f"{type(world_map).__name__}"
+        )
+    if len(palette) == 0:
+        raise ConfigError("the palette has no policies; build one with `gracenav palette build`")
+    if not (math.isfinite(palette.d) and palette.d > 0):
+        raise ConfigError(f"palette distance parameter d must be positive, got {palette.d!r}")
+    if not (isinstance(footprint_radius, int | float) and math.isfinite(footprint_radius)):
+        raise ConfigError(f"footprint_radius must be a finite number (m), got {footprint_radius!r}")
+    if footprint_radius < 0:
+        raise ConfigError(
+            f"footprint_radius must be >= 0 m, got {footprint_radius:g}; the robot body "
+            "needs about 0.2 m"
+        )
+    if not (isinstance(coverage_target, int | float) and 0.0 <= coverage_target <= 1.0):
+        raise ConfigError(f"coverage_target must be a fraction in [0, 1], got {coverage_target!r}")
+    if isinstance(max_halvings, bool) or not isinstance(max_halvings, int) or max_halvings < 0:
+        raise ConfigError(f"max_halvings must be an integer >= 0, got {max_halvings!r}")
+    if (
+        isinstance(coverage_samples, bool)
+        or not isinstance(coverage_samples, int)
+        or coverage_samples < 1
+    ):
+        raise ConfigError(f"coverage_samples must be an integer >= 1, got {coverage_samples!r}")
+    if sweep_step is not None and not (
+        isinstance(sweep_step, int | float) and math.isfinite(sweep_step) and sweep_step > 0
+    ):
+        raise ConfigError(f"sweep_step must be a positive length (m), got {sweep_step!r}")
+    for pol in palette.policies:
+        start = pol.primitive.position[0, :2]
+        if np.any(np.abs(start) > 1e-9):
+            raise ConfigError(
+                f"palette policy {pol.name!r} starts at {tuple(start)} m, not at the origin of "
+                "its frame; rebuild the palette"
+            )
+
+
+def build_library(
+    palette: Palette,
+    world_map: WorldMap,
+    *,
+    footprint_radius: float = 0.2,
+    coverage_target: float = 1.0,
+    max_halvings: int = 3,
+    seed: int = 0,
+    coverage_samples: int = DEFAULT_COVERAGE_SAMPLES,
+    sweep_step: float | None = None,
+) -> PolicyLibrary:
+    """Instantiate the palette on a map with coverage-driven lattice refinement.
+
+    Parameters
+    ----------
+    palette : Palette
+        The motion policy palette Π(Σ(d)).
+    world_map : WorldMap
+        The map M; its minimum corner anchors the lattice of instantiation points
+        (so a goal on that lattice is an instantiation point).
+    footprint_radius : float
+        Robot footprint radius (m), >= 0. The body is 0.37 m across.
+    coverage_target : float
+        Coverage fraction in [0, 1] at which refinement stops.
+    max_halvings : int
+        Largest number of spacing halvings (the last lattice spacing is at least
+        d / 2^max_halvings).
+    seed : int
+        Seed of the coverage sampling.
+    coverage_samples : int
+        Position states sampled to estimate coverage (the same set at every spacing,
+        so coverage never decreases from one spacing to the next).
+    sweep_step : float, optional
+        Largest arc length (m) between the checked samples of a swept outer domain;
+        default the map resolution.
+
+    Returns
+    -------
+    PolicyLibrary
+        The library at the last spacing tried, with the per-iteration records.
+
+    Raises
+    ------
+    ConfigError
+        For invalid arguments (the message names the argument).
+    MapError
+        If no position of the map has clearance >= ``footprint_radius``.
+
+    Notes
+    -----
+    **Obstacle check.** Instantiation at point q with orientation k is valid iff for
+    every t in [0, t_f] the disc of radius f + ρ'(t) around q + R_k σ_xy(t) lies in
+    free space inside the map (f the footprint radius, ρ'(t) the XY radius of D'(t):
+    outer factor × position radius of D(t)). It is checked with
+    ``world_map.clearance`` (distance to the nearest occupied cell or the map edge,
+    0 outside; as exact as the map's rasterisation, within one cell of the true
+    obstacles) at reference samples c_0 = 0, ..., c_K = σ_xy(t_f), chosen at most
+    ``sweep_step`` of arc apart (plus one control tick of motion). Between samples
+    j and j+1, separated by arc length ℓ_j, every reference point is within ℓ_j / 2
+    of one of them, and ρ'(t) (geometric in t, hence monotone) is at most
+    max(ρ'_j, ρ'_{j+1}). So requiring
+
+        clearance(q + c_j) >= f + max over adjacent intervals i of
+                                  (max(ρ'_i, ρ'_{i+1}) + ℓ_i / 2)
+
+    at every sample is sufficient: the allowance for the spacing of samples is
+    ℓ/2 <= (sweep_step + one tick of motion) / 2. To be fast the check is
+    hierarchical and uses that clearance is a distance (1-Lipschitz): a disc around q
+    (then one around each group of 8 samples) that bounds all the required discs is
+    tested first, and the samples only where it is not clear. Loops run over
+    palette policies × orientations only; all points are handled by numpy.
+
+    **Coverage** is the fraction of ``coverage_samples`` position states, uniform
+    over free positions with clearance >= f and velocities in [−v_max, v_max]² (v_max
+    the largest trim speed), inside at least one start domain S. Points whose
+    clearance is below f + (outer factor − 1) · ρ_S cannot be covered (no valid
+    start domain reaches them), so on maps with walls coverage stays below 1 and
+    every halving is used.
+    """
+    _check_inputs(
+        palette,
+        world_map,
+        footprint_radius,
+        coverage_target,
+        max_halvings,
+        coverage_samples,
+        sweep_step,
+    )
+    footprint = float(footprint_radius)
+    step = float(sweep_step) if sweep_step is not None else float(world_map.resolution)
+    types = PolicyTypes.from_palette(palette)
+    tables = _sweep_tables([_sweep(p, step) for p in palette.policies])
+    rng = np.random.default_rng(seed)
+    samples = _coverage_samples(
+        world_map, footprint, _max_trim_speed(palette), coverage_samples, rng
+    )
+    iterations: list[InstantiationIteration] = []
+    library: PolicyLibrary | None = None
+    coverage = 0.0
+    for h in range(max_halvings + 1):
+        t0 = time.perf_counter()
+        spacing = palette.d / 2**h
+        library = _instantiate(palette, types, tables, world_map, spacing, footprint, step)
+        coverage = float(np.mean(library.start_domain_covers(samples)))
+        iterations.append(
+            InstantiationIteration(spacing, len(library), coverage, time.perf_counter() - t0)
+        )
+        if coverage >= coverage_target:
+            break
+    assert library is not None
+    out = replace(library, coverage=coverage, iterations=tuple(iterations))
+    out._cache.update(library._cache)
+    return out
