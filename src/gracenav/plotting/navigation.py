@@ -1,0 +1,173 @@
+"""Navigation figures: paths with obstacles and domains (paper Figs. 5, 7, 8), body
+angles against time (Figs. 6, 9), and an animation of one run."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["animate_episode", "draw_map", "plot_lean", "plot_paths"]
+
+
+def _plt() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def draw_map(ax: Any, world_map: Any) -> None:
+    """Draw the map's bounds and obstacles (black) on ``ax``."""
+    (x0, y0), (x1, y1) = world_map.bounds
+    occ = np.asarray(world_map.occupied, dtype=float)
+    ax.imshow(
+        np.ma.masked_where(occ == 0, occ),
+        origin="lower",
+        extent=(x0, x1, y0, y1),
+        cmap="Greys",
+        vmin=0.0,
+        vmax=1.0,
+        interpolation="nearest",
+        zorder=1,
+    )
+    ax.plot([x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0], "k-", lw=1.5)
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+    ax.set_aspect("equal")
+    ax.set_xlabel("X (m)")
+    ax.set_ylabel("Y (m)")
+
+
+def _circle(ax: Any, c: Any, r: float, **kw: Any) -> None:
+    ang = np.linspace(0, 2 * np.pi, 60)
+    ax.plot(c[0] + r * np.cos(ang), c[1] + r * np.sin(ang), **kw)
+
+
+def plot_paths(result: Any, path: str | Path) -> Path:
+    """Reference and simulated paths of every run, the start domains of the executed
+    policies, the goal(s), obstacles and domain exits. Saves a PNG."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.5, 6.5), constrained_layout=True)
+    draw_map(ax, result.world_map)
+    lib = result.library
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for k, ep in enumerate(result.episodes):
+        c = colors[k % len(colors)]
+        for pid in dict.fromkeys(int(i) for i in ep.policy if i >= 0):
+            pol = lib.policy(pid)
+            s = pol.start_domain
+            rad = float(np.sqrt(np.linalg.inv(s.xy_projection())[0, 0]))
+            _circle(ax, s.center, rad, color=c, alpha=0.25, lw=0.8)
+        ref = ep.reference
+        ax.plot(ref[:, 0], ref[:, 1], "--", color=c, lw=1, alpha=0.8)
+        p = ep.position_state
+        ax.plot(p[:, 0], p[:, 1], "-", color=c, lw=2, label=f"run {k + 1}")
+        ax.plot(p[0, 0], p[0, 1], "o", color=c)
+        exits = [e.tick for e in ep.events if e.reason.value in ("domain_exit", "not_in_goal")]
+        if exits:
+            ax.plot(p[exits, 0], p[exits, 1], "x", color="red", ms=7, mew=2)
+    for g in result.scenario.goals:
+        ax.plot(g[0], g[1], "*", color="green", ms=16, mec="k", zorder=5)
+        if np.hypot(g[2], g[3]) > 0:
+            ax.annotate(
+                "",
+                xy=(g[0] + g[2], g[1] + g[3]),
+                xytext=(g[0], g[1]),
+                arrowprops={"arrowstyle": "->", "color": "green", "lw": 2},
+            )
+    ax.plot([], [], "k--", lw=1, label="reference")
+    if any(e.reason.value == "domain_exit" for ep in result.episodes for e in ep.events):
+        ax.plot([], [], "x", color="red", mew=2, label="domain exit")
+    ax.legend(loc="lower right", fontsize=8)
+    ax.set_title(f"{result.scenario.name}: {len(result.episodes)} run(s)")
+    out = Path(path)
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return out
+
+
+def plot_lean(result: Any, path: str | Path) -> Path:
+    """Body angles (degrees) against time of every run, one panel per run. Saves a PNG."""
+    plt = _plt()
+    n = len(result.episodes)
+    fig, axes = plt.subplots(
+        n, 1, figsize=(7, 2.2 * n + 0.6), sharex=False, squeeze=False, constrained_layout=True
+    )
+    for k, ep in enumerate(result.episodes):
+        ax = axes[k, 0]
+        deg = np.rad2deg(ep.lean)
+        ax.plot(ep.time, deg[:, 0], label="X")
+        ax.plot(ep.time, deg[:, 1], label="Y")
+        for e in ep.events:
+            if not e.reason.graceful and e.reason.value != "start":
+                ax.axvline(e.time, color="red", lw=0.6, alpha=0.5)
+        ax.set_ylabel("body angle (°)")
+        ax.grid(True, alpha=0.3)
+        ax.set_title(f"run {k + 1}", fontsize=9)
+        ax.legend(loc="upper right", fontsize=8)
+    axes[-1, 0].set_xlabel("time (s)")
+    out = Path(path)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
+def animate_episode(result: Any, run: int, path: str | Path, *, fps: int = 10) -> Path:
+    """A GIF of run ``run``: the ball, the body's lean, the current policy's outer domain
+    and the path so far, at ``fps`` frames per simulated second (played in real time)."""
+    plt = _plt()
+    from matplotlib.animation import FuncAnimation, PillowWriter
+
+    ep = result.episodes[run]
+    p = ep.position_state
+    lib = result.library
+    fig, ax = plt.subplots(figsize=(5, 5), constrained_layout=True)
+    draw_map(ax, result.world_map)
+    for g in result.scenario.goals:
+        ax.plot(g[0], g[1], "*", color="green", ms=14, mec="k")
+    (trail,) = ax.plot([], [], "-", color="tab:blue", lw=1.5)
+    (body,) = ax.plot([], [], "-", color="tab:orange", lw=4, solid_capstyle="round")
+    (ball,) = ax.plot([], [], "o", color="tab:blue", ms=8)
+    (dom,) = ax.plot([], [], "-", color="tab:orange", lw=0.8, alpha=0.7)
+    title = ax.set_title("")
+    step = max(1, round(1.0 / (fps * (ep.time[1] - ep.time[0]))))
+    frames = list(range(0, ep.time.size, step))
+    lean_scale = 0.6 / np.deg2rad(5.0)  # 5° of lean drawn as 0.6 m
+    ang = np.linspace(0, 2 * np.pi, 50)
+    cache: dict[int, Any] = {}
+
+    def update(i: int) -> tuple[Any, ...]:
+        trail.set_data(p[: i + 1, 0], p[: i + 1, 1])
+        ball.set_data([p[i, 0]], [p[i, 1]])
+        tip = p[i, :2] + lean_scale * ep.lean[i]
+        body.set_data([p[i, 0], tip[0]], [p[i, 1], tip[1]])
+        pid = int(ep.policy[i])
+        if pid >= 0:
+            pol = cache.setdefault(pid, lib.policy(pid))
+            start = (
+                next(
+                    e.time
+                    for e in reversed(ep.events)
+                    if e.to_policy == pid and e.time <= ep.time[i] + 1e-9
+                )
+                if ep.events
+                else 0.0
+            )
+            d = pol.outer_domain(float(ep.time[i] - start))
+            rad = float(np.sqrt(np.linalg.inv(d.xy_projection())[0, 0]))
+            dom.set_data(d.center[0] + rad * np.cos(ang), d.center[1] + rad * np.sin(ang))
+            title.set_text(f"t = {ep.time[i]:5.1f} s  {pol.name}")
+        else:
+            dom.set_data([], [])
+            title.set_text(f"t = {ep.time[i]:5.1f} s  balancing")
+        return trail, body, ball, dom, title
+
+    anim = FuncAnimation(fig, update, frames=frames, blit=False)
+    out = Path(path)
+    anim.save(str(out), writer=PillowWriter(fps=fps))
+    plt.close(fig)
+    return out
