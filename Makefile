@@ -23,7 +23,7 @@ setup: $(VENV)/.installed
 setup-test: $(VENV)/.installed-test
 
 demo: setup
-	$(VENV)/bin/gracenav simulate balance --lean-deg 5 --out out/demo
+	$(VENV)/bin/gracenav demo --out out/demo
 
 lint: setup-test
 	$(PY) -m ruff check src tests bench tools examples

@@ -63,6 +63,7 @@ class EventReason(enum.Enum):
     DOMAIN_EXIT = "domain_exit"
     NOT_IN_GOAL = "not_in_goal"
     BALANCING = "balancing"
+    RECOVERED = "recovered"
 
     @property
     def graceful(self) -> bool:
@@ -116,7 +117,13 @@ class ExecutionOptions:
         this distance (m) of the goal and slower than this speed (m/s); until then the
         goal rest trim is held (trims may last any time).
     balance_time : float
-        How long balancing mode is simulated after a task stops for want of a policy (s).
+        Longest time (s) spent in balancing mode waiting for the state to enter some
+        policy's start domain before the task stops.
+    balance_chunk : float
+        How often (s) balancing mode checks the start domains.
+    resume_from_balancing : bool
+        Resume the task from balancing mode once a start domain contains the state (a
+        gracenav extension: the paper assumes 100 % coverage and stops the task).
     simulation : SimulationOptions
         Integration substeps and sensor noise.
     """
@@ -124,7 +131,9 @@ class ExecutionOptions:
     plant: Literal["model3d", "mujoco"] = "model3d"
     max_time: float = 120.0
     goal_tolerance: float = 0.05
-    balance_time: float = 2.0
+    balance_time: float = 5.0
+    balance_chunk: float = 0.125
+    resume_from_balancing: bool = True
     simulation: SimulationOptions = field(default_factory=SimulationOptions)
 
     def __post_init__(self) -> None:
@@ -201,7 +210,8 @@ class Episode:
 
     @property
     def non_graceful_switches(self) -> int:
-        """Switches forced by a disturbance (domain exit, not in G, balancing mode)."""
+        """Switches forced by a disturbance (domain exit, not in G, balancing mode,
+        recovery from it)."""
         return sum(
             1 for e in self.events if e.reason is not EventReason.START and not e.reason.graceful
         )
@@ -250,6 +260,13 @@ def _segment_disturbances(
     return out, inst
 
 
+def _disturbed(disturbances: Sequence[Disturbance], t: float) -> bool:
+    """Whether a force or drag acts at time ``t`` (the robot is still held)."""
+    return any(
+        isinstance(d, (BodyForce, Drag)) and d.start_time <= t < d.end_time for d in disturbances
+    )
+
+
 class HybridController:
     """Executes navigation tasks with a policy library, its graph and single-goal trees.
 
@@ -279,7 +296,7 @@ class HybridController:
         self.palette = library.palette
         self.gains = self.palette.gains
         self.params = params if isinstance(params, BallbotParams) else self.palette.params
-        self._adjacency = graph.csr(self.criterion.value)  # type: ignore[arg-type]
+        self._adjacency = graph.csr(self.criterion.value)
         self._trees: dict[int, PolicyTree] = {}
         self.tree_seconds: list[float] = []
 
@@ -331,6 +348,16 @@ class HybridController:
             self.tree_seconds.append(_time.perf_counter() - t0)
             self._trees[goal_policy] = tree
         return tree
+
+    def _recovery_point(self, p: FloatArray, tree: PolicyTree) -> FloatArray:
+        """The start of the nearest rest trim of the library that reaches the goal (the
+        current position if there is none)."""
+        rest = self.library.trim_indices(PrimitiveKind.REST)
+        rest = rest[np.isfinite(tree.cost_to_go[rest]) | (rest == tree.goal)]
+        if rest.size == 0:
+            return np.asarray(p[:2], dtype=float)
+        xy = self.library.start_xy[rest]
+        return np.asarray(xy[int(np.argmin(np.linalg.norm(xy - p[:2], axis=1)))], dtype=float)
 
     def best_policy(self, p: ArrayLike, tree: PolicyTree) -> int:
         """The policy with the lowest cost-to-go whose S contains ``p`` (−1 if none)."""
@@ -485,31 +512,53 @@ class HybridController:
                 status = TaskStatus.TIMEOUT
                 break
             if nxt < 0:
+                # Balancing mode: station keeping at the nearest rest-trim start of the
+                # library from which the goal is reachable, checking every chunk whether
+                # some policy's S now contains the state; the task stops if none does
+                # within ``balance_time``.
                 events.append(SwitchEvent(t, current, -1, EventReason.BALANCING, ticks))
-                status = TaskStatus.NO_POLICY
-                hold = Reference.hold(p[:2], options.balance_time, params=self.params)
-                local, _ = _segment_disturbances(disturbances, t, dt, hold.num_ticks, applied)
-                bal = simulate(
-                    x,
-                    hold,
-                    self.gains,
-                    params=self.params,
-                    plant=options.plant,
-                    disturbances=local,
-                    options=options.simulation,
-                )
-                n = bal.states.shape[0] - 1
-                chunks_t.append(t + bal.time[:n])
-                chunks_x.append(bal.states[:n])
-                chunks_u.append(bal.inputs[:n])
-                chunks_pol.append(np.full(n, -1, dtype=np.int64))
-                hold_ref = np.zeros((n, 6))
-                hold_ref[:, :2] = p[:2]
-                chunks_ref.append(hold_ref)
-                t += n * dt
-                ticks += n
-                x = bal.states[-1].copy()
-                break
+                hold_xy = self._recovery_point(p, tree)
+                waited = 0.0
+                nxt = -1
+                while waited < options.balance_time - 1e-9:
+                    chunk = min(options.balance_chunk, options.balance_time - waited)
+                    hold = Reference.hold(hold_xy, chunk, params=self.params)
+                    local, inst_idx = _segment_disturbances(
+                        disturbances, t, dt, hold.num_ticks, applied
+                    )
+                    bal = simulate(
+                        x,
+                        hold,
+                        self.gains,
+                        params=self.params,
+                        plant=options.plant,
+                        disturbances=local,
+                        options=options.simulation,
+                    )
+                    n = bal.states.shape[0] - 1
+                    applied.update(inst_idx)
+                    chunks_t.append(t + bal.time[:n])
+                    chunks_x.append(bal.states[:n])
+                    chunks_u.append(bal.inputs[:n])
+                    chunks_pol.append(np.full(n, -1, dtype=np.int64))
+                    hold_ref = np.zeros((n, 6))
+                    hold_ref[:, :2] = hold_xy
+                    chunks_ref.append(hold_ref)
+                    t += n * dt
+                    ticks += n
+                    waited += n * dt
+                    x = bal.states[-1].copy()
+                    p = position_state(x, r)
+                    if options.resume_from_balancing and not _disturbed(disturbances, t):
+                        nxt = self.best_policy(p, tree)
+                        if nxt >= 0:
+                            break
+                if nxt < 0:
+                    status = TaskStatus.NO_POLICY
+                    break
+                events.append(SwitchEvent(t, -1, nxt, EventReason.RECOVERED, ticks))
+                current = nxt
+                continue
             events.append(SwitchEvent(t, current, nxt, reason, ticks))
             current = nxt
         # the final state

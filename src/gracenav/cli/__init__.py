@@ -25,7 +25,7 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """Build the argument parser with all sub-commands."""
-    from gracenav.cli import palette_cmd, plot_cmd, simulate_cmd
+    from gracenav.cli import palette_cmd, plot_cmd, run_cmd, simulate_cmd
 
     parser = _Parser(
         prog="gracenav",
@@ -39,6 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"gracenav {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
+    run_cmd.register(sub)
     simulate_cmd.register(sub)
     palette_cmd.register(sub)
     plot_cmd.register(sub)

@@ -67,7 +67,16 @@ def plot_paths(result: Any, path: str | Path) -> Path:
         p = ep.position_state
         ax.plot(p[:, 0], p[:, 1], "-", color=c, lw=2, label=f"run {k + 1}")
         ax.plot(p[0, 0], p[0, 1], "o", color=c)
-        exits = [e.tick for e in ep.events if e.reason.value in ("domain_exit", "not_in_goal")]
+        for d in result.scenario.disturbances:
+            t0 = getattr(d, "start_time", getattr(d, "time", 0.0))
+            t1 = getattr(d, "end_time", t0 + 0.05)
+            sel = (ep.time >= t0) & (ep.time <= t1)
+            ax.plot(p[sel, 0], p[sel, 1], "-", color="red", lw=3.5, alpha=0.5, zorder=4)
+        exits = [
+            e.tick
+            for e in ep.events
+            if e.reason.value in ("domain_exit", "not_in_goal", "balancing")
+        ]
         if exits:
             ax.plot(p[exits, 0], p[exits, 1], "x", color="red", ms=7, mew=2)
     for g in result.scenario.goals:
@@ -80,8 +89,14 @@ def plot_paths(result: Any, path: str | Path) -> Path:
                 arrowprops={"arrowstyle": "->", "color": "green", "lw": 2},
             )
     ax.plot([], [], "k--", lw=1, label="reference")
-    if any(e.reason.value == "domain_exit" for ep in result.episodes for e in ep.events):
+    if any(
+        e.reason.value in ("domain_exit", "not_in_goal", "balancing")
+        for ep in result.episodes
+        for e in ep.events
+    ):
         ax.plot([], [], "x", color="red", mew=2, label="domain exit")
+    if result.scenario.disturbances:
+        ax.plot([], [], "-", color="red", lw=3.5, alpha=0.5, label="pushed / dragged")
     ax.legend(loc="lower right", fontsize=8)
     ax.set_title(f"{result.scenario.name}: {len(result.episodes)} run(s)")
     out = Path(path)
