@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from gracenav._io import atomic_write_text
+from gracenav._io import atomic_write_text, yaml_error_message
 from gracenav.errors import ConfigError
 
 __all__ = ["BallbotParams"]
@@ -187,7 +187,8 @@ class BallbotParams:
         try:
             data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
         except (json.JSONDecodeError, yaml.YAMLError) as exc:
-            raise ConfigError(f"{path}: not valid {path.suffix[1:] or 'YAML'}: {exc}") from None
+            detail = str(exc) if isinstance(exc, json.JSONDecodeError) else yaml_error_message(exc)
+            raise ConfigError(f"{path}: not valid {path.suffix[1:] or 'YAML'}: {detail}") from None
         return cls.from_dict(data, source=str(path))
 
     def save(self, path: str | Path) -> None:

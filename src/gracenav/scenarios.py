@@ -35,7 +35,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from gracenav._io import atomic_write_text
+from gracenav._io import atomic_write_text, yaml_error_message
 from gracenav.errors import ConfigError
 from gracenav.simulate import Disturbance, Drag, Push, SimulationOptions
 
@@ -276,7 +276,7 @@ def load_scenario(path: str | Path) -> Scenario:
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: not valid YAML: {exc}") from None
+        raise ConfigError(f"{path}: not valid YAML: {yaml_error_message(exc)}") from None
     return parse_scenario(data, source=str(path), base=path.parent)
 
 

@@ -53,7 +53,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         status: int = args.func(args)
     except GracenavError as exc:
-        print(f"gracenav: error: {exc}", file=sys.stderr)
+        message = " ".join(str(exc).split())  # always one line
+        print(f"gracenav: error: {message}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("gracenav: interrupted", file=sys.stderr)

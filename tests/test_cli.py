@@ -1,0 +1,61 @@
+"""The command line: outputs, help, and one-line errors with a non-zero exit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gracenav.cli import main
+
+
+def test_simulate_balance_writes_csv_and_png(tmp_path, capsys) -> None:
+    assert main(["simulate", "balance", "--lean-deg", "5", "--out", str(tmp_path)]) == 0
+    data = np.loadtxt(tmp_path / "trajectory.csv", delimiter=",", skiprows=1)
+    header = (tmp_path / "trajectory.csv").read_text().splitlines()[0]
+    assert header == "t,x,y,xdot,ydot,lean_x,lean_y,tau_x,tau_y"
+    assert data[0, 5] == pytest.approx(np.deg2rad(5.0))
+    assert np.hypot(data[-1, 1], data[-1, 2]) < 0.02
+    assert (tmp_path / "balance.png").stat().st_size > 10_000
+    assert "max lean 5.00°" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["simulate", "balance", "--lean-deg", "abc", "--out", "x"],
+        ["simulate", "balance", "--lean-deg", "45", "--out", "x"],
+        ["simulate", "balance"],
+        ["simulate", "walk", "--out", "x"],
+        ["plot", "domain", "no_such_policy", "--out", "x.png"],
+        ["palette", "show", "--file", "/nonexistent.npz"],
+        ["frobnicate"],
+    ],
+)
+def test_bad_arguments_give_one_line_and_nonzero_exit(argv, capsys) -> None:
+    try:
+        status = main(argv)
+    except SystemExit as exc:  # argparse exits by itself
+        status = int(exc.code or 0)
+    assert status == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "error" in err and "Traceback" not in err
+
+
+def test_help_explains(capsys) -> None:
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    out = capsys.readouterr().out
+    assert "summary.json" in out and "scenario" in out
+
+
+def test_plot_commands(tmp_path) -> None:
+    assert main(["plot", "primitives", "--out", str(tmp_path / "p.png")]) == 0
+    assert main(["plot", "domain", "rest_to_cruise_x_2_0", "--out", str(tmp_path / "d.png")]) == 0
+    assert (tmp_path / "p.png").stat().st_size > 10_000
+    assert (tmp_path / "d.png").stat().st_size > 10_000
+
+
+def test_palette_show(capsys) -> None:
+    assert main(["palette", "show"]) == 0
+    out = capsys.readouterr().out
+    assert "rest_to_cruise_x_2_0" in out and "39 policies" in out

@@ -1,0 +1,188 @@
+"""End-to-end navigation: every shipped scenario, the hybrid controller's behaviour, and
+the documented error of each kind of bad scenario."""
+
+from __future__ import annotations
+
+import copy
+import json
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from gracenav import ConfigError, PlanningError
+from gracenav.cli import main
+from gracenav.execution import EventReason, ExecutionOptions, HybridController, TaskStatus
+from gracenav.graph import build_graph
+from gracenav.library import build_library
+from gracenav.maps import load_map
+from gracenav.palette import load_palette
+from gracenav.scenarios import load_scenario, parse_scenario, run_scenario, write_outputs
+from gracenav.simulate import state_from_position
+
+SCENARIOS = Path(str(resources.files("gracenav") / "data" / "scenarios"))
+DEG5 = 5.0
+
+
+@pytest.fixture(scope="module")
+def fig5():
+    return run_scenario(load_scenario(SCENARIOS / "fig5_point_to_point.yaml"))
+
+
+def test_fig5_every_start_reaches_the_goal_gracefully(fig5, tmp_path) -> None:
+    assert len(fig5.runs) == 4
+    for run, ep in zip(fig5.runs, fig5.episodes, strict=True):
+        assert run.reached_goal, run
+        assert run.final_error_m < 0.05 and run.final_speed_mps < 0.05
+        assert run.max_lean_deg < DEG5
+        assert run.min_clearance_m > 0.0  # the footprint never touches an obstacle
+        assert run.non_graceful_switches == 0
+        # The reference is continuous through acceleration across every switch ...
+        # (the step across a switch is no larger than the ordinary steps around it).
+        steps = np.abs(np.diff(ep.reference, axis=0))
+        for e in ep.events[1:]:
+            around = np.r_[steps[e.tick - 6 : e.tick - 1], steps[e.tick : e.tick + 5]]
+            assert np.all(steps[e.tick - 1] <= 1.5 * around.max(axis=0) + 1e-9), e
+        # ... and the commanded torque does not jump at graceful switches (the palette's
+        # measured bound over all 1025 connecting pairs is 0.03 N m).
+        assert np.max(ep.graceful_torque_jumps()) < 0.05
+        assert run.tree_ms < 50.0
+    write_outputs(fig5, tmp_path, animation=False)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert [r["reached_goal"] for r in summary["runs"]] == [True] * 4
+    header = (tmp_path / "trajectory.csv").read_text().splitlines()[0].split(",")
+    for col in ("run", "t", "x", "y", "xdot", "ydot", "lean_x", "lean_y", "tau_x", "tau_y"):
+        assert col in header
+    assert (tmp_path / "events.csv").read_text().startswith("run,time,from,to")
+    assert (tmp_path / "paths.png").stat().st_size > 10_000
+
+
+def test_fig7_drag_exits_recovers_without_replanning_and_reaches_goal() -> None:
+    res = run_scenario(load_scenario(SCENARIOS / "fig7_drag.yaml"))
+    run, ep = res.runs[0], res.episodes[0]
+    assert run.reached_goal and run.final_error_m < 0.05
+    assert run.non_graceful_switches >= 1
+    reasons = [e.reason for e in ep.events]
+    assert EventReason.BALANCING in reasons or EventReason.DOMAIN_EXIT in reasons
+    # One tree, computed once: no replanning after the disturbance.
+    assert len(ep.tree_seconds) == 1
+
+
+def test_fig8_surveillance_completes_five_loops() -> None:
+    res = run_scenario(load_scenario(SCENARIOS / "fig8_surveillance.yaml"))
+    run, ep = res.runs[0], res.episodes[0]
+    assert ep.status is TaskStatus.LOOPS_COMPLETED
+    assert run.goals_reached == 4 * 5
+    assert run.max_lean_deg < DEG5
+    assert run.non_graceful_switches == 0
+    # The paper: five loops in about 90 s, about 0.55 m/s on average.
+    assert 60.0 < run.time_s < 100.0
+    assert 0.45 < run.path_length_m / run.time_s < 0.65
+
+
+def test_fig5_on_the_mujoco_plant() -> None:
+    pytest.importorskip("mujoco")
+    sc = load_scenario(SCENARIOS / "fig5_point_to_point.yaml")
+    import dataclasses
+
+    sc = dataclasses.replace(sc, plant="mujoco", starts=sc.starts[1:2])
+    res = run_scenario(sc)
+    assert res.runs[0].reached_goal and res.runs[0].final_error_m < 0.05
+    assert res.runs[0].max_lean_deg < DEG5
+
+
+def test_push_is_absorbed_or_recovered() -> None:
+    data = yaml.safe_load((SCENARIOS / "fig5_point_to_point.yaml").read_text())
+    data["task"]["starts"] = [[0.0, 2.0, 0.0, 0.0]]
+    data["disturbances"] = [{"kind": "push", "time": 2.0, "impulse": [0.0, -15.0]}]
+    res = run_scenario(parse_scenario(data))
+    assert res.runs[0].reached_goal
+
+
+@pytest.fixture(scope="module")
+def controller() -> HybridController:
+    pal = load_palette()
+    wm = load_map(yaml.safe_load((SCENARIOS / "fig5_point_to_point.yaml").read_text())["map"])
+    lib = build_library(pal, wm, max_halvings=1)
+    return HybridController(lib, build_graph(lib))
+
+
+def test_goal_errors_say_which(controller: HybridController) -> None:
+    with pytest.raises(PlanningError, match="outside the map"):
+        controller.goal_policy([9.0, 9.0, 0.0, 0.0])
+    with pytest.raises(PlanningError, match="inside an obstacle"):
+        controller.goal_policy([1.0, 1.25, 0.0, 0.0])
+    with pytest.raises(PlanningError, match="outside coverage"):
+        controller.goal_policy([2.1, 2.07, 0.3, 0.0])
+    r = controller.params.ball_radius
+    with pytest.raises(PlanningError, match="start"):
+        controller.run(state_from_position([3.4, 2.9, 0.0, 0.0], r), [[2.0, 2.0, 0.0, 0.0]])
+
+
+def test_hybrid_controller_event_log(controller: HybridController) -> None:
+    r = controller.params.ball_radius
+    ep = controller.run(
+        state_from_position([0.0, 0.0, 0.0, 0.0], r),
+        [[2.0, 2.0, 0.0, 0.0]],
+        options=ExecutionOptions(max_time=60.0),
+    )
+    assert ep.events[0].reason is EventReason.START
+    for a, b in zip(ep.events[:-1], ep.events[1:], strict=True):
+        assert b.from_policy == a.to_policy and b.time > a.time
+        # Each policy ran its full duration before a graceful switch.
+        if b.reason is EventReason.GRACEFUL:
+            dur = controller.library.durations[a.to_policy]
+            assert b.time - a.time == pytest.approx(dur, abs=1e-9)
+    # Every tick's policy matches the log.
+    for e in ep.events:
+        assert ep.policy[e.tick] == e.to_policy
+
+
+BAD = [
+    ({"bogus": 1}, "unknown key"),
+    ({"task": {"kind": "teleport"}}, "task.kind"),
+    ({"task": {"goal": [1, 2, 3]}}, "task.goal"),
+    ({"task": {"starts": "here"}}, "task.starts"),
+    ({"robot": {"footprint_radius": "wide"}}, "robot.footprint_radius"),
+    ({"planner": {"cost": "money"}}, "planner.cost"),
+    ({"simulation": {"plant": "gazebo"}}, "simulation.plant"),
+    ({"simulation": {"seed": 1.5}}, "simulation.seed"),
+    ({"disturbances": [{"kind": "push", "time": 1.0}]}, "disturbances[0].impulse"),
+    (
+        {"disturbances": [{"kind": "drag", "start_time": 3, "end_time": 2, "velocity": [0, 1]}]},
+        "start_time < end_time",
+    ),
+    ({"name": ""}, "'name'"),
+]
+
+
+@pytest.mark.parametrize(("patch", "message"), BAD)
+def test_bad_scenarios_name_the_key(patch: dict, message: str) -> None:
+    data = yaml.safe_load((SCENARIOS / "fig5_point_to_point.yaml").read_text())
+    data = copy.deepcopy(data)
+    for k, v in patch.items():
+        if isinstance(v, dict) and isinstance(data.get(k), dict):
+            data[k].update(v)
+        else:
+            data[k] = v
+    with pytest.raises(ConfigError, match=message.replace("[", r"\[").replace("]", r"\]")):
+        parse_scenario(data, source="bad.yaml")
+
+
+def test_bad_scenario_files(tmp_path, capsys) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: x\ntask: [1, 2\n")
+    with pytest.raises(ConfigError, match="not valid YAML"):
+        load_scenario(bad)
+    assert main(["run", str(bad), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("gracenav: error:") and err.count("\n") == 1
+    missing_map = tmp_path / "ros.yaml"
+    missing_map.write_text(
+        "name: x\nmap: {ros_map: nowhere.yaml}\ntask: {kind: point_to_point, goal: [0, 0, 0, 0], "
+        "starts: [[0, 0, 0, 0]]}\n"
+    )
+    assert main(["run", str(missing_map), "--out", str(tmp_path / "o")]) == 2
+    assert "nowhere.yaml" in capsys.readouterr().err
