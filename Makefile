@@ -36,7 +36,7 @@ test: lint typecheck
 	$(PY) -m pytest -q
 
 bench: setup-test
-	$(PY) bench/bench_simulate.py
+	for b in bench/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .mypy_cache .ruff_cache
