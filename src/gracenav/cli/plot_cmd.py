@@ -36,6 +36,23 @@ def register(sub: Any) -> None:
     dm.add_argument("--file", type=Path, default=None, help="palette file (default: shipped)")
     dm.add_argument("--out", type=Path, required=True, help="output PNG file")
     dm.set_defaults(func=run_domain)
+    lb = s.add_parser(
+        "library",
+        help="the policy library on a map: start domains (paper Fig. 4 style)",
+        description="Instantiate the palette on MAP (inline-geometry YAML/JSON or a ROS "
+        "map_server YAML) and draw the map, obstacles and the library's start domains; "
+        "--coverage shows where sampled position states are not covered.",
+    )
+    lb.add_argument("map", type=Path, help="map file")
+    lb.add_argument("--out", type=Path, required=True, help="output PNG file")
+    lb.add_argument("--coverage", action="store_true", help="draw the coverage view")
+    lb.add_argument(
+        "--footprint", type=float, default=0.2, help="robot footprint radius (m, default 0.2)"
+    )
+    lb.add_argument(
+        "--max-halvings", type=int, default=1, help="coverage refinement limit (default 1)"
+    )
+    lb.set_defaults(func=run_library)
 
 
 def run_primitives(args: argparse.Namespace) -> int:
@@ -56,4 +73,22 @@ def run_domain(args: argparse.Namespace) -> int:
     pal = load_palette(args.file)
     out = plot_domain(pal[args.name], args.out)
     print(f"wrote {out}")
+    return 0
+
+
+def run_library(args: argparse.Namespace) -> int:
+    """Run ``gracenav plot library``."""
+    from gracenav.library import build_library
+    from gracenav.maps import load_map
+    from gracenav.palette import load_palette
+    from gracenav.plotting.library import plot_library
+
+    lib = build_library(
+        load_palette(),
+        load_map(args.map),
+        footprint_radius=args.footprint,
+        max_halvings=args.max_halvings,
+    )
+    out = plot_library(lib, args.out, coverage=args.coverage)
+    print(f"{len(lib)} library policies, coverage {100 * lib.coverage:.1f} %; wrote {out}")
     return 0
