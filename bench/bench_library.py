@@ -22,7 +22,6 @@ with a note.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import os
 import resource
 import statistics
@@ -53,13 +52,6 @@ from gracenav.policies import (
 DT = 1.0 / 1024.0
 V = 0.5  # cruise speed along an axis (m/s)
 VD = 1.0 / 3.0  # cruise velocity components along the diagonal (m/s)
-
-
-def _make(cls: Any, **fields: Any) -> Any:
-    """``cls(**fields)`` without the fields ``cls`` does not have (the palette file format
-    gains fields over time; the synthetic palette fills in whatever is asked)."""
-    known = {f.name for f in dataclasses.fields(cls)}
-    return cls(**{k: v for k, v in fields.items() if k in known})
 
 
 def _septic(p1: float, v0: float, v1: float, duration: float, t: np.ndarray) -> np.ndarray:
@@ -108,8 +100,7 @@ def synthetic_primitive(
     kind = (
         PrimitiveKind.REST if still else (PrimitiveKind.CRUISE if trim else PrimitiveKind.MANEUVER)
     )
-    return _make(
-        SampledPrimitive,
+    return SampledPrimitive(
         name=name,
         kind=kind,
         duration=n * DT,
@@ -173,8 +164,7 @@ def synthetic_palette() -> Palette:
         prim = synthetic_primitive(name, disp, v0, v1, T)
         rp = 0.35 if prim.is_trim else 0.25 + 0.05 * (i % 3)
         policies.append(MotionPolicy(prim, gains, DomainRadii(rp, rp), goal, (1.3, 2.0)))
-    return _make(
-        Palette,
+    return Palette(
         policies=tuple(policies),
         rejected=(),
         duplicates=(),

@@ -29,6 +29,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -50,7 +51,9 @@ __all__ = [
     "PolicyLibrary",
     "PolicyTypes",
     "build_library",
+    "max_trim_speed",
     "quarter_turn",
+    "sample_position_states",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -365,7 +368,7 @@ class InstantiatedPolicy:
         shape (..., 4) (m, m/s)."""
         return self._to_world(self.policy.primitive.position_state(t))
 
-    @property
+    @cached_property
     def reference_positions(self) -> FloatArray:
         """Reference x, y, ẋ, ẏ, ẍ, ÿ at the control ticks in the world frame, shape
         (T + 1, 6) (m, m/s, m/s²)."""
@@ -375,15 +378,18 @@ class InstantiatedPolicy:
         out[:, :2] = pos[:, :2] @ r.T + self.start_xy
         out[:, 2:4] = pos[:, 2:4] @ r.T
         out[:, 4:6] = pos[:, 4:6] @ r.T
+        out.setflags(write=False)
         return out
 
-    @property
+    @cached_property
     def reference_lean(self) -> FloatArray:
         """Reference body lean (φ_x, φ_y) and lean rate at the ticks in the world frame,
         shape (T + 1, 4) (rad, rad/s)."""
         st = self.policy.primitive.states
         r = self.rotation
-        return np.concatenate([st[:, PHI] @ r.T, st[:, [PHI_X_DOT, PHI_Y_DOT]] @ r.T], axis=1)
+        out = np.concatenate([st[:, PHI] @ r.T, st[:, [PHI_X_DOT, PHI_Y_DOT]] @ r.T], axis=1)
+        out.setflags(write=False)
+        return out
 
     @property
     def path_length(self) -> float:
@@ -883,7 +889,9 @@ def _instantiate(
 # --------------------------------------------------------------------------------------
 
 
-def _max_trim_speed(palette: Palette) -> float:
+def max_trim_speed(palette: Palette) -> float:
+    """v_max: the largest reference speed of the palette's trim policies (m/s); 0 if the
+    palette has no cruise trim."""
     speeds = [
         float(np.hypot(*p.primitive.start_velocity))
         for p in palette.policies
@@ -892,10 +900,43 @@ def _max_trim_speed(palette: Palette) -> float:
     return max(speeds, default=0.0)
 
 
-def _coverage_samples(
-    world_map: WorldMap, footprint: float, v_max: float, n: int, rng: np.random.Generator
+def sample_position_states(
+    world_map: WorldMap,
+    n: int,
+    *,
+    footprint_radius: float,
+    v_max: float,
+    seed: int | np.random.Generator = 0,
 ) -> FloatArray:
-    """``n`` position states uniform over {clearance >= footprint} × [−v_max, v_max]²."""
+    """Uniform samples of the bounded position state space that coverage is measured on.
+
+    Positions are uniform over the free points of the map with clearance >=
+    ``footprint_radius`` (by rejection), velocities uniform in [−v_max, v_max]².
+
+    Parameters
+    ----------
+    world_map : WorldMap
+    n : int
+        Number of samples wanted.
+    footprint_radius : float
+        Robot footprint radius (m).
+    v_max : float
+        Velocity bound (m/s).
+    seed : int or numpy.random.Generator
+        Randomness (positions are drawn first, then velocities).
+
+    Returns
+    -------
+    ndarray, shape (n, 4)
+        (x, y, ẋ, ẏ) (m, m/s). Fewer rows only if the free space is so small that
+        200 n uniform draws over the map found fewer than n points in it.
+
+    Raises
+    ------
+    MapError
+        If no draw falls in free space with enough clearance.
+    """
+    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     (x0, y0), (x1, y1) = world_map.bounds
     got: list[FloatArray] = []
     have = drawn = 0
@@ -904,18 +945,19 @@ def _coverage_samples(
         batch = max(2 * (n - have), 1024)
         xy = rng.uniform((x0, y0), (x1, y1), size=(batch, 2))
         drawn += batch
-        keep = xy[world_map.clearance(xy) >= footprint]
+        keep = xy[world_map.is_free(xy) & (world_map.clearance(xy) >= footprint_radius)]
         got.append(keep)
         have += keep.shape[0]
     if have == 0:
         raise MapError(
             f"{world_map.source}: no free position has clearance >= footprint_radius "
-            f"{footprint:g} m, so there is nothing to cover; use a map with free space wider "
-            "than the robot or a smaller footprint_radius"
+            f"{footprint_radius:g} m, so there is nothing to cover; use a map with free space "
+            "wider than the robot or a smaller footprint_radius"
         )
     xy = np.concatenate(got)[:n]
     v = rng.uniform(-v_max, v_max, size=(xy.shape[0], 2))
-    return np.concatenate([xy, v], axis=1)
+    out: FloatArray = np.concatenate([xy, v], axis=1)
+    return out
 
 
 # --------------------------------------------------------------------------------------
@@ -1065,9 +1107,12 @@ def build_library(
     step = float(sweep_step) if sweep_step is not None else float(world_map.resolution)
     types = PolicyTypes.from_palette(palette)
     tables = _sweep_tables([_sweep(p, step) for p in palette.policies])
-    rng = np.random.default_rng(seed)
-    samples = _coverage_samples(
-        world_map, footprint, _max_trim_speed(palette), coverage_samples, rng
+    samples = sample_position_states(
+        world_map,
+        coverage_samples,
+        footprint_radius=footprint,
+        v_max=max_trim_speed(palette),
+        seed=seed,
     )
     iterations: list[InstantiationIteration] = []
     library: PolicyLibrary | None = None
