@@ -21,7 +21,10 @@ Library data are columnar numpy arrays, one row per instantiated policy, in
 instantiation point (row-major on the lattice). Orientation k rotates
 positions, velocities, accelerations and the body lean (a vector toward the
 direction of motion) by the exact quarter-turn matrix :func:`quarter_turn`.
-Domains are round in position and in velocity, so they rotate trivially.
+Domains have shape matrices M ⊗ I₂ in (x, y, ẋ, ẏ) (per-axis 2 × 2 M coupling
+position and velocity, the same for x and y), which are invariant under
+rotations of the plane: they rotate trivially, and the XY projection of D'(t)
+is a disc of radius (outer position factor) × (position extent of D(t)).
 """
 
 from __future__ import annotations
@@ -658,7 +661,7 @@ class PolicyLibrary:
     def start_domain_contains(self, points: ArrayLike) -> sparse.csr_matrix:
         """Which library policies' start domains S contain each position state.
 
-        A spatial hash of the start domains (grouped by start velocity, radii and
+        A spatial hash of the start domains (grouped by start velocity, shape and
         lattice point) limits the candidates of each point to the lattice points
         within reach: the cost grows with the number of hits, not with M · N.
 
@@ -1068,7 +1071,7 @@ def build_library(
     **Obstacle check.** Instantiation at point q with orientation k is valid iff for
     every t in [0, t_f] the disc of radius f + ρ'(t) around q + R_k σ_xy(t) lies in
     free space inside the map (f the footprint radius, ρ'(t) the XY radius of D'(t):
-    outer factor × position radius of D(t)). It is checked with
+    outer position factor × position extent of D(t)). It is checked with
     ``world_map.clearance`` (distance to the nearest occupied cell or the map edge,
     0 outside; as exact as the map's rasterisation, within one cell of the true
     obstacles) at reference samples c_0 = 0, ..., c_K = σ_xy(t_f), chosen at most
@@ -1089,10 +1092,11 @@ def build_library(
 
     **Coverage** is the fraction of ``coverage_samples`` position states, uniform
     over free positions with clearance >= f and velocities in [−v_max, v_max]² (v_max
-    the largest trim speed), inside at least one start domain S. Points whose
-    clearance is below f + (outer factor − 1) · ρ_S cannot be covered (no valid
-    start domain reaches them), so on maps with walls coverage stays below 1 and
-    every halving is used.
+    the largest trim speed; see :func:`sample_position_states` and
+    :func:`max_trim_speed`), inside at least one start domain S. Points whose
+    clearance is below f + (outer position factor − 1) · ρ_S (ρ_S the XY radius of
+    S) cannot be covered: no valid start domain reaches them. On maps with walls
+    coverage therefore stays below 1 and a target of 1 uses every halving.
     """
     _check_inputs(
         palette,
