@@ -3,11 +3,19 @@
 Implements Nagarajan, Kantor & Hollis, "Integrated Planning and Control for
 Graceful Navigation of Shape-Accelerated Underactuated Balancing Mobile
 Robots", ICRA 2012, and goes beyond it.
+
+The main entry points are re-exported here and imported on first use, so
+``import gracenav`` stays light::
+
+    from gracenav import load_palette, load_map, build_library, build_graph
+    from gracenav import HybridController, load_scenario, run_scenario
 """
 
 from __future__ import annotations
 
+import importlib
 import os
+from typing import Any
 
 # Threaded BLAS makes the many small LAPACK calls of this package ~50x slower
 # on small machines; respect a user's explicit choice.
@@ -25,6 +33,32 @@ from gracenav.params import BallbotParams
 
 __version__ = "0.1.0"
 
+_LAZY = {
+    "Ballbot3D": "gracenav.model",
+    "PlanarBallbot": "gracenav.model",
+    "design_gains": "gracenav.control",
+    "simulate": "gracenav.simulate",
+    "simulate_batch": "gracenav.simulate",
+    "run_policy": "gracenav.simulate",
+    "primitive_set": "gracenav.primitives",
+    "plan_shape_trajectory": "gracenav.shape_planner",
+    "MotionPolicy": "gracenav.policies",
+    "Palette": "gracenav.palette",
+    "load_palette": "gracenav.palette",
+    "WorldMap": "gracenav.maps",
+    "load_map": "gracenav.maps",
+    "PolicyLibrary": "gracenav.library",
+    "build_library": "gracenav.library",
+    "PreparesGraph": "gracenav.graph",
+    "build_graph": "gracenav.graph",
+    "PolicyTree": "gracenav.planning",
+    "plan_tree": "gracenav.planning",
+    "HybridController": "gracenav.execution",
+    "Episode": "gracenav.execution",
+    "load_scenario": "gracenav.scenarios",
+    "run_scenario": "gracenav.scenarios",
+}
+
 __all__ = [
     "BallbotParams",
     "CacheError",
@@ -34,4 +68,18 @@ __all__ = [
     "PlanningError",
     "VerificationError",
     "__version__",
+    *sorted(_LAZY),
 ]
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'gracenav' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

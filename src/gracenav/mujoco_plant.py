@@ -236,6 +236,13 @@ def drive_torque(tau: ArrayLike, phi_x: ArrayLike) -> FloatArray:
     return np.stack([-tau[..., 1], tau[..., 0], tau[..., 1] * np.tan(0.5 * phi_x)], axis=-1)
 
 
+def _cross(u: FloatArray, v: FloatArray) -> FloatArray:
+    """u × v for 3-vectors (np.cross costs ~30 µs of call overhead here)."""
+    return np.array(
+        [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
+    )
+
+
 def _body_quaternion(phi_x: float, phi_y: float) -> FloatArray:
     """Quaternion (w, x, y, z) of R = R_y(φ_x) R_x(−φ_y)."""
     cy, sy = math.cos(0.5 * phi_x), math.sin(0.5 * phi_x)
@@ -401,7 +408,7 @@ class MujocoBallbot:
         mj.mj_objectVelocity(self.model, data, mj.mjtObj.mjOBJ_BODY, self._body, self._vel, 0)
         w_body = self._vel[0:3].copy()
         a = data.xmat[self._body].reshape(3, 3)[:, 2].copy()
-        adot = np.cross(w_body, a)
+        adot = _cross(w_body, a)
         phi, phid = _leans_from_axis(a, adot)
         x = np.empty(8)
         x[0:2] = centre[0:2] / r - phi

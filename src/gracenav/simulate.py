@@ -15,7 +15,7 @@ from __future__ import annotations
 import enum
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -23,6 +23,9 @@ from numpy.typing import ArrayLike, NDArray
 from gracenav.control import ControllerGains, design_gains
 from gracenav.errors import ConfigError
 from gracenav.params import BallbotParams
+
+if TYPE_CHECKING:
+    from gracenav.policies import MotionPolicy
 
 __all__ = [
     "BatchResult",
@@ -36,6 +39,7 @@ __all__ = [
     "StateJump",
     "StopReason",
     "position_state",
+    "run_policy",
     "simulate",
     "simulate_batch",
     "state_from_position",
@@ -614,4 +618,54 @@ def _simulate_mujoco(
         stop_reason=StopReason.DOMAIN_EXIT
         if stop_on_exit and exit_tick >= 0
         else StopReason.COMPLETED,
+    )
+
+
+def run_policy(
+    policy: MotionPolicy,
+    p0: ArrayLike,
+    plant: Plant = "model3d",
+    *,
+    params: BallbotParams | None = None,
+    disturbances: Sequence[Disturbance] = (),
+    options: SimulationOptions | None = None,
+) -> SimulationResult:
+    """Simulate one motion policy (in its own frame) from the position state ``p0``.
+
+    The body starts with the lean and lean rate its primitive plans at t = 0 (as in
+    verification) and the policy's control law tracks its primitive for its duration;
+    D'(t) is monitored (``max_domain_value``) but the run does not stop on exit.
+
+    Parameters
+    ----------
+    policy : MotionPolicy
+    p0 : array_like, shape (4,)
+        Initial position state (x, y, ẋ, ẏ) (m, m/s).
+    plant : {"model3d", "mujoco"}
+    params : BallbotParams, optional
+        Plant parameters (default: the policy's nominal ones).
+    disturbances : sequence of Disturbance
+    options : SimulationOptions, optional
+
+    Returns
+    -------
+    SimulationResult
+        ``time`` (N,), ``states`` (N, 8), ``position_state`` (N, 4), ...
+    """
+    p = np.asarray(p0, dtype=float)
+    if p.shape != (4,):
+        raise ConfigError(f"p0 must be a position state (x, y, xdot, ydot), got shape {p.shape}")
+    prim = policy.primitive
+    x0 = state_from_position(
+        p, policy.gains.params.ball_radius, lean=prim.states[0, 2:4], lean_rate=prim.states[0, 6:8]
+    )
+    return simulate(
+        x0,
+        prim.reference(),
+        policy.gains,
+        params=params,
+        plant=plant,
+        disturbances=disturbances,
+        options=options,
+        monitor=policy.outer_monitor(),
     )
