@@ -25,6 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 from gracenav.errors import ConfigError, PlanningError
 from gracenav.graph import PreparesGraph
 from gracenav.library import PolicyLibrary
+from gracenav.params import BallbotParams
 from gracenav.planning import CostCriterion, PolicyTree, plan_tree
 from gracenav.policies import PrimitiveKind, instantiated_reference
 from gracenav.simulate import (
@@ -225,13 +226,12 @@ class Episode:
         t = np.asarray(ticks)
         return np.asarray(np.max(np.abs(self.inputs[t] - self.inputs[t - 1]), axis=1))
 
-    def ball_jerk(self, params: object | None = None) -> FloatArray:
-        """Ball jerk magnitude (m/s³) between ticks, from the 3D model's accelerations,
-        shape (N − 1,)."""
+    def ball_jerk(self, params: BallbotParams | None = None) -> FloatArray:
+        """Ball jerk magnitude (m/s³) between ticks, from the 3D model's accelerations
+        (``params``: the plant's; default CMU ballbot), shape (N − 1,)."""
         from gracenav.model.ballbot3d import Ballbot3D
-        from gracenav.params import BallbotParams
 
-        model = Ballbot3D(params if isinstance(params, BallbotParams) else None)
+        model = Ballbot3D(params)
         acc = model.accelerations(self.states[:, :4], self.states[:, 4:], self.inputs)
         ball = self.radius * (acc[:, :2] + acc[:, 2:])
         dt = np.diff(self.time)
@@ -286,16 +286,14 @@ class HybridController:
         graph: PreparesGraph,
         *,
         criterion: CostCriterion | str = CostCriterion.TIME,
-        params: object | None = None,
+        params: BallbotParams | None = None,
     ) -> None:
-        from gracenav.params import BallbotParams
-
         self.library = library
         self.graph = graph
         self.criterion = CostCriterion(criterion) if isinstance(criterion, str) else criterion
         self.palette = library.palette
         self.gains = self.palette.gains
-        self.params = params if isinstance(params, BallbotParams) else self.palette.params
+        self.params = params if params is not None else self.palette.params
         self._adjacency = graph.csr(self.criterion.value)
         self._trees: dict[int, PolicyTree] = {}
         self.tree_seconds: list[float] = []

@@ -51,6 +51,7 @@ from gracenav.params import BallbotParams
 from gracenav.simulate import (
     DEFAULT_CONTROL_RATE,
     Reference,
+    position_state,
     simulate_batch,
     state_from_position,
 )
@@ -592,7 +593,7 @@ def verify_policy(
     policy: MotionPolicy,
     options: VerificationOptions | None = None,
     *,
-    params: object | None = None,
+    params: BallbotParams | None = None,
 ) -> VerificationReport:
     """Verify a policy on the 3D model from points on the surface of its start domain.
 
@@ -622,11 +623,9 @@ def verify_policy(
         x0,
         prim.reference(),
         policy.gains,
-        params=params,  # type: ignore[arg-type]
+        params=params,
         monitor=policy.outer_monitor(),
     )
-    from gracenav.simulate import position_state
-
     final_p = position_state(res.final_states, r)
     goal_values = policy.goal_domain.value(final_p)
     saturated = int(np.count_nonzero(res.saturated_ticks))
