@@ -402,7 +402,7 @@ class HybridController:
         options = options if options is not None else ExecutionOptions()
         if loops < 1:
             raise ConfigError(f"loops must be >= 1, got {loops!r}")
-        if not goals:
+        if len(goals) == 0:
             raise ConfigError("a task needs at least one goal")
         goal_ids = [self.goal_policy(g) for g in goals]
         sequence = goal_ids * loops
