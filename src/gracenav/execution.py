@@ -35,6 +35,7 @@ from gracenav.simulate import (
     Push,
     Reference,
     SimulationOptions,
+    SimulationResult,
     StateJump,
     StopReason,
     position_state,
@@ -260,6 +261,46 @@ def _segment_disturbances(
     return out, inst
 
 
+class _Recorder:
+    """Concatenates the samples of consecutive segments (policies or balancing chunks).
+
+    A segment's last sample is the next segment's first (same time and state), so only
+    samples [0, last) of each are kept; :meth:`arrays` appends the final state.
+    """
+
+    def __init__(self) -> None:
+        self.t: list[FloatArray] = []
+        self.x: list[FloatArray] = []
+        self.u: list[FloatArray] = []
+        self.pol: list[IntArray] = []
+        self.ref: list[FloatArray] = []
+
+    def add(self, t0: float, res: SimulationResult, policy: int, ref: FloatArray) -> None:
+        n = res.states.shape[0] - 1
+        self.t.append(t0 + res.time[:n])
+        self.x.append(res.states[:n])
+        self.u.append(res.inputs[:n])
+        self.pol.append(np.full(n, policy, dtype=np.int64))
+        self.ref.append(ref[:n])
+
+    def arrays(
+        self, t: float, x: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray, IntArray, FloatArray]:
+        """time, states, inputs, policy, reference with the final state appended (its
+        input, policy and reference repeat the last sample's)."""
+        last = next((i for i in range(len(self.u) - 1, -1, -1) if self.u[i].size), None)
+        u_end = self.u[last][-1:] if last is not None else np.zeros((1, 2))
+        pol_end = self.pol[last][-1:] if last is not None else np.array([-1], dtype=np.int64)
+        ref_end = self.ref[last][-1:] if last is not None else np.zeros((1, 6))
+        return (
+            np.concatenate([*self.t, [t]]),
+            np.concatenate([*self.x, x[None, :]]),
+            np.concatenate([*self.u, u_end]),
+            np.concatenate([*self.pol, pol_end]),
+            np.concatenate([*self.ref, ref_end]),
+        )
+
+
 def _disturbed(disturbances: Sequence[Disturbance], t: float) -> bool:
     """Whether a force or drag acts at time ``t`` (the robot is still held)."""
     return any(
@@ -422,11 +463,7 @@ class HybridController:
                 else "the goal cannot be reached from any policy whose start domain contains it"
             )
             raise PlanningError(f"start {tuple(np.round(p, 3))}: {why}")
-        chunks_t: list[FloatArray] = []
-        chunks_x: list[FloatArray] = []
-        chunks_u: list[FloatArray] = []
-        chunks_pol: list[IntArray] = []
-        chunks_ref: list[FloatArray] = []
+        record = _Recorder()
         events = [SwitchEvent(0.0, -1, current, EventReason.START, 0)]
         goals_reached: list[tuple[float, int]] = []
         applied: set[int] = set()
@@ -437,11 +474,9 @@ class HybridController:
             inst = self.library.policy(current)
             prim = inst.policy.primitive
             ref, ref_pos = instantiated_reference(prim, inst.orientation, inst.start_xy, r)
-            centres = ref_pos[:, :4]
-            _, base_shapes = inst.policy.outer_monitor()
-            rot = np.zeros((4, 4))
-            rot[:2, :2] = rot[2:, 2:] = inst.rotation
-            shapes = rot @ base_shapes @ rot.T
+            # Domain shapes are invariant under rotations of the plane: only the
+            # centres move with the instantiation.
+            _, shapes = inst.policy.outer_monitor()
             is_goal = current == sequence[k_goal]
             if is_goal and k_goal + 1 < len(sequence):
                 # Regenerate the tree for the next goal while the last policy to the
@@ -456,18 +491,14 @@ class HybridController:
                 plant=options.plant,
                 disturbances=local,
                 options=options.simulation,
-                monitor=(np.ascontiguousarray(centres), np.ascontiguousarray(shapes)),
+                monitor=(np.ascontiguousarray(ref_pos[:, :4]), shapes),
                 stop_on_exit=True,
             )
             last = res.states.shape[0] - 1
             for i in inst_idx:
                 if round((disturbances[i].time - t) / dt) <= last:  # type: ignore[union-attr]
                     applied.add(i)
-            chunks_t.append(t + res.time[:last])
-            chunks_x.append(res.states[:last])
-            chunks_u.append(res.inputs[:last])
-            chunks_pol.append(np.full(last, current, dtype=np.int64))
-            chunks_ref.append(ref_pos[:last])
+            record.add(t, res, current, ref_pos)
             t += last * dt
             ticks += last
             x = res.states[-1].copy()
@@ -535,13 +566,9 @@ class HybridController:
                     )
                     n = bal.states.shape[0] - 1
                     applied.update(inst_idx)
-                    chunks_t.append(t + bal.time[:n])
-                    chunks_x.append(bal.states[:n])
-                    chunks_u.append(bal.inputs[:n])
-                    chunks_pol.append(np.full(n, -1, dtype=np.int64))
-                    hold_ref = np.zeros((n, 6))
+                    hold_ref = np.zeros((n + 1, 6))
                     hold_ref[:, :2] = hold_xy
-                    chunks_ref.append(hold_ref)
+                    record.add(t, bal, -1, hold_ref)
                     t += n * dt
                     ticks += n
                     waited += n * dt
@@ -559,18 +586,13 @@ class HybridController:
                 continue
             events.append(SwitchEvent(t, current, nxt, reason, ticks))
             current = nxt
-        # the final state
-        chunks_t.append(np.array([t]))
-        chunks_x.append(x[None, :])
-        chunks_u.append(chunks_u[-1][-1:] if chunks_u and chunks_u[-1].size else np.zeros((1, 2)))
-        chunks_pol.append(chunks_pol[-1][-1:] if chunks_pol else np.array([-1]))
-        chunks_ref.append(chunks_ref[-1][-1:] if chunks_ref else np.zeros((1, 6)))
+        time, states, inputs, policy, reference = record.arrays(t, x)
         return Episode(
-            time=np.concatenate(chunks_t),
-            states=np.concatenate(chunks_x),
-            inputs=np.concatenate(chunks_u),
-            policy=np.concatenate(chunks_pol),
-            reference=np.concatenate(chunks_ref),
+            time=time,
+            states=states,
+            inputs=inputs,
+            policy=policy,
+            reference=reference,
             events=tuple(events),
             status=status,
             goals_reached=tuple(goals_reached),
