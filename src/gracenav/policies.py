@@ -66,6 +66,7 @@ __all__ = [
     "VerificationReport",
     "domain_shape",
     "size_policy",
+    "verify_placements",
     "verify_policy",
 ]
 
@@ -659,6 +660,27 @@ def _worse(a: VerificationReport, b: VerificationReport) -> VerificationReport:
     )
 
 
+def verify_placements(
+    policy: MotionPolicy,
+    options: VerificationOptions | None = None,
+    *,
+    params: BallbotParams | None = None,
+) -> VerificationReport:
+    """Verify a policy at every placement instantiation uses.
+
+    Instantiation places policies at 0°, 90°, 180° and 270°; 180° is an exact
+    symmetry of the 3D model, so the 0° and 90° placements cover all four. Returns
+    the combined report (passes only if both pass).
+    """
+    reports = [
+        verify_policy(
+            replace(policy, primitive=policy.primitive.rotated(k)), options, params=params
+        )
+        for k in (0, 1)
+    ]
+    return _worse(*reports)
+
+
 def size_policy(
     primitive: SampledPrimitive,
     gains: ControllerGains | None = None,
@@ -694,14 +716,10 @@ def size_policy(
 
     def attempt(scale: float) -> MotionPolicy:
         pol = MotionPolicy(primitive, gains, goal.scaled(scale), goal, factors, shape.correlation)
-        # Instantiation places the policy at 0°, 90°, 180° and 270°; 180° is an exact
-        # symmetry, so the 0° and 90° placements cover all four.
-        reports = [
-            verify_policy(replace(pol, primitive=primitive.rotated(k)), options) for k in (0, 1)
-        ]
+        report = verify_placements(pol, options)
         if progress is not None:
             progress()
-        return replace(pol, report=_worse(*reports))
+        return replace(pol, report=report)
 
     best = attempt(1.0)
     if best.report is None or not best.report.passed:
