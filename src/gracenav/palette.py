@@ -70,17 +70,12 @@ def palette_key(
                 "max_lean_compensation": gains.max_lean_compensation,
                 "friction_compensation": gains.friction_compensation,
             },
-            "options": _options_dict(options),
+            "options": dataclasses.asdict(options),
             "d": d,
         },
         sort_keys=True,
     )
     return hashlib.sha256(blob.encode()).hexdigest()
-
-
-def _options_dict(options: VerificationOptions) -> dict[str, Any]:
-    out = dataclasses.asdict(options)
-    return out
 
 
 def shipped_palette_path() -> Path:
@@ -151,7 +146,7 @@ class Palette:
             "key": self.key,
             "d": self.d,
             "params": self.params.to_dict(),
-            "options": _options_dict(self.options),
+            "options": dataclasses.asdict(self.options),
             "gains": {
                 "lqr": self.gains.lqr.tolist(),
                 "params": self.gains.params.to_dict(),

@@ -447,7 +447,6 @@ def write_outputs(result: ScenarioResult, out: str | Path, *, animation: bool = 
     path = out / "summary.json"
     atomic_write_text(path, json.dumps(summary, indent=2, allow_nan=True) + "\n")
     written.append(path)
-    names = []
     rows = ["run,t,x,y,xdot,ydot,lean_x,lean_y,tau_x,tau_y,ref_x,ref_y,policy"]
     for k, ep in enumerate(result.episodes):
         p = ep.position_state
@@ -458,21 +457,20 @@ def write_outputs(result: ScenarioResult, out: str | Path, *, animation: bool = 
                 f"{ep.lean[i, 0]:.6e},{ep.lean[i, 1]:.6e},{ep.inputs[i, 0]:.5f},"
                 f"{ep.inputs[i, 1]:.5f},{ep.reference[i, 0]:.6f},{ep.reference[i, 1]:.6f},{pol}"
             )
-        names.append({i: result.library.policy(i).name for i in set(ep.policy.tolist()) if i >= 0})
     path = out / "trajectory.csv"
     atomic_write_text(path, "\n".join(rows) + "\n")
     written.append(path)
+
+    def name(i: int) -> str:
+        return result.library.policy(i).name if i >= 0 else ""
+
     ev = ["run,time,from,to,from_name,to_name,reason"]
     for k, ep in enumerate(result.episodes):
         for e in ep.events:
-            fn = names[k].get(
-                e.from_policy,
-                result.library.policy(e.from_policy).name if e.from_policy >= 0 else "",
+            ev.append(
+                f"{k},{e.time:.6f},{e.from_policy},{e.to_policy},{name(e.from_policy)},"
+                f"{name(e.to_policy)},{e.reason.value}"
             )
-            tn = names[k].get(
-                e.to_policy, result.library.policy(e.to_policy).name if e.to_policy >= 0 else ""
-            )
-            ev.append(f"{k},{e.time:.6f},{e.from_policy},{e.to_policy},{fn},{tn},{e.reason.value}")
     path = out / "events.csv"
     atomic_write_text(path, "\n".join(ev) + "\n")
     written.append(path)
