@@ -219,8 +219,7 @@ class SimulationResult:
     time : ndarray, shape (N,)
         Control tick times (s).
     states : ndarray, shape (N, 8)
-        Plant state at each tick (before that tick's disturbances are applied
-        only for ``StateJump``/``Push`` at the same tick: those are applied first).
+        Plant state at each tick, after any push or state jump of that tick.
     inputs : ndarray, shape (N, 2)
         Saturated torque commanded at each tick (N m), held until the next.
     radius : float
