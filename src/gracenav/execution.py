@@ -80,6 +80,9 @@ class TaskStatus(enum.Enum):
     LOOPS_COMPLETED = "loops_completed"
     NO_POLICY = "no_policy"
     TIMEOUT = "timeout"
+    #: Consecutive policies ended without advancing time (e.g. every policy whose S
+    #: contains the state leaves its D' at once): the task stops instead of looping.
+    NO_PROGRESS = "no_progress"
 
 
 @dataclass(frozen=True)
@@ -170,7 +173,9 @@ class Episode:
     tree_seconds : tuple of float
         Wall time of every single-goal tree computation (s).
     radius : float
-        Ball radius (m).
+        The plant's ball radius (m): :attr:`position_state` is where the robot truly
+        is, which differs from what the controller believes (its nominal radius) when
+        the plant's radius is not the nominal one.
     """
 
     time: FloatArray
@@ -237,6 +242,11 @@ class Episode:
         ball = self.radius * (acc[:, :2] + acc[:, 2:])
         dt = np.diff(self.time)
         return np.asarray(np.linalg.norm(np.diff(ball, axis=0), axis=1) / dt)
+
+
+#: Policies in a row that may end at their first tick (an instantaneous disturbance at
+#: a switch can do that once) before the task stops with TaskStatus.NO_PROGRESS.
+_MAX_STALLED_SEGMENTS = 8
 
 
 def _segment_disturbances(
@@ -318,7 +328,11 @@ class HybridController:
     criterion : {"time", "distance"}
         Optimality criterion of the trees.
     params : BallbotParams, optional
-        Parameters of the simulated plant (default: the palette's).
+        Parameters of the simulated plant (default: the palette's). They may differ
+        from the controller's nominal parameters (model mismatch): every decision of
+        the hybrid controller (domain membership, references, the goal test) uses the
+        position state the controller *measures*, from the encoder angles and its
+        nominal ball radius, exactly as the compiled closed loop monitors D'(t).
     """
 
     def __init__(
@@ -449,7 +463,7 @@ class HybridController:
         sequence = goal_ids * loops
         goal_states = [np.asarray(g, dtype=float) for g in goals] * loops
         dt = 1.0 / 1024.0
-        r = self.params.ball_radius
+        r = self.gains.params.ball_radius  # the controller's (measured) position states
         x = np.asarray(x0, dtype=float).copy()
         p = position_state(x, r)
         k_goal = 0
@@ -469,6 +483,7 @@ class HybridController:
         applied: set[int] = set()
         t = 0.0
         ticks = 0
+        stalled = 0  # consecutive policies that ended at their first tick
         status = TaskStatus.TIMEOUT
         while True:
             inst = self.library.policy(current)
@@ -503,6 +518,10 @@ class HybridController:
             ticks += last
             x = res.states[-1].copy()
             p = position_state(x, r)
+            stalled = stalled + 1 if last == 0 else 0
+            if stalled > _MAX_STALLED_SEGMENTS:
+                status = TaskStatus.NO_PROGRESS
+                break
             if res.stop_reason is StopReason.DOMAIN_EXIT:
                 reason = EventReason.DOMAIN_EXIT
                 nxt = self.best_policy(p, tree)
@@ -551,7 +570,7 @@ class HybridController:
                 nxt = -1
                 while waited < options.balance_time - 1e-9:
                     chunk = min(options.balance_chunk, options.balance_time - waited)
-                    hold = Reference.hold(hold_xy, chunk, params=self.params)
+                    hold = Reference.hold(hold_xy, chunk, params=self.gains.params)
                     local, inst_idx = _segment_disturbances(
                         disturbances, t, dt, hold.num_ticks, applied
                     )
@@ -597,5 +616,5 @@ class HybridController:
             status=status,
             goals_reached=tuple(goals_reached),
             tree_seconds=tuple(self.tree_seconds),
-            radius=r,
+            radius=self.params.ball_radius,
         )
