@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from gracenav import ConfigError, MapError
-from gracenav.maps import (
+from gracenav.world import (
     DEFAULT_RESOLUTION,
     Circle,
     Polygon,
@@ -263,7 +263,7 @@ def test_png_gray_colour_alpha_palette(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(("bits", "color"), [(8, 0), (16, 0), (8, 2), (16, 6), (8, 4), (4, 0)])
 def test_png_decoder_undoes_every_row_filter(tmp_path: Path, bits: int, color: int) -> None:
-    from gracenav.maps import _decode_png
+    from gracenav.world.ros_map import _decode_png
 
     rng = np.random.default_rng(bits * 10 + color)
     channels = {0: 1, 2: 3, 4: 2, 6: 4}[color]
@@ -278,7 +278,7 @@ def test_png_decoder_undoes_every_row_filter(tmp_path: Path, bits: int, color: i
 def test_png_written_by_matplotlib_decodes_exactly() -> None:
     import matplotlib.image as mpimg
 
-    from gracenav.maps import _decode_png
+    from gracenav.world.ros_map import _decode_png
 
     rng = np.random.default_rng(3)
     rgba = rng.integers(0, 256, size=(31, 29, 4)).astype(np.uint8)
@@ -1035,7 +1035,7 @@ def test_random_grids_round_trip_through_pgm(img: np.ndarray, binary: bool, nega
     st.data(),
 )
 def test_random_grids_round_trip_through_png(img: np.ndarray, data: st.DataObject) -> None:
-    from gracenav.maps import _decode_png
+    from gracenav.world.ros_map import _decode_png
 
     filters = np.array(data.draw(st.lists(st.integers(0, 4), min_size=len(img), max_size=len(img))))
     pixels, maxval, alpha = _decode_png(png_bytes(img, filters=filters), "test")
