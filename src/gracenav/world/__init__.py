@@ -19,7 +19,7 @@ from __future__ import annotations
 from gracenav.world.geometry import Circle, Polygon, Rectangle, Shape
 from gracenav.world.loading import load_map
 from gracenav.world.occupancy import DEFAULT_RESOLUTION, WorldMap
-from gracenav.world.ros_map import read_pgm, save_ros_map, write_pgm
+from gracenav.world.ros_map import save_ros_map
 from gracenav.world.synthetic import office_map
 
 __all__ = [
@@ -31,7 +31,5 @@ __all__ = [
     "WorldMap",
     "load_map",
     "office_map",
-    "read_pgm",
     "save_ros_map",
-    "write_pgm",
 ]

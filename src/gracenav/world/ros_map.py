@@ -1,24 +1,27 @@
 """ROS map_server maps: the YAML description and its image, read and written.
 
-A map_server map is a YAML file naming a PGM (P2/P5, 8 or 16 bit) or PNG image, read
-with map_server's threshold semantics (trinary / scale / raw modes, ``negate``,
-``occupied_thresh``, ``free_thresh``). Image row 0 is the *top* of the map and is flipped
-on loading so that grid row 0 is the lowest y.
+A map_server map is a YAML file naming an image, read with map_server's threshold
+semantics (trinary / scale / raw modes, ``negate``, ``occupied_thresh``,
+``free_thresh``). Images are decoded by Pillow: PNG (gray, gray + alpha, RGB, RGBA or
+palette; 1 to 16 bit) and netpbm (PGM P2/P5 of any maxval up to 65535, PBM, PPM). Image
+row 0 is the *top* of the map and is flipped on loading so that grid row 0 is the lowest
+y.
 """
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import re
-import struct
-import zlib
+import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, TypeAlias
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
+from PIL import Image, ImageFile
 
 from gracenav._io import atomic_write_bytes, atomic_write_text
 from gracenav.errors import ConfigError, MapError
@@ -26,301 +29,138 @@ from gracenav.world._checks import check_keys, positive_field, read_bytes, real_
 from gracenav.world.geometry import BoolArray
 from gracenav.world.occupancy import _MAX_CELLS, WorldMap
 
-__all__ = ["map_from_ros_yaml", "read_pgm", "save_ros_map", "write_pgm"]
+__all__ = ["map_from_ros_yaml", "save_ros_map"]
 
 _ROS_REQUIRED = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
 _ROS_OPTIONAL = ("mode",)
 _ROS_MODES = ("trinary", "scale", "raw")
 
-_WHITESPACE = b" \t\r\n\v\f"
+# ----------------------------------------------------------------------------------------
+# Images
+# ----------------------------------------------------------------------------------------
+
+_IMAGE_FORMATS = ("PNG", "PPM")  # Pillow's names; its PPM plugin reads PBM, PGM and PPM
+
+Pixels: TypeAlias = NDArray[np.uint16]
+
+_NETPBM_KINDS = {b"P1": "PBM", b"P4": "PBM", b"P2": "PGM", b"P5": "PGM", b"P3": "PPM", b"P6": "PPM"}
 
 
-def _pgm_header(data: bytes, where: str) -> tuple[bytes, int, int, int, int]:
-    """(magic, width, height, maxval, offset of the pixel data)."""
-    magic = data[:2]
-    if magic not in (b"P2", b"P5"):
+def _kind(data: bytes) -> str:
+    """What the first bytes of an image file claim it is, for error messages."""
+    if data.startswith(b"\x89PNG\r\n\x1a\n"):
+        return "PNG"
+    return _NETPBM_KINDS.get(data[:2], "image")
+
+
+def _declared_maxval(im: ImageFile.ImageFile) -> int | None:
+    """The maxval a PGM/PPM header declared, or None if Pillow kept the values as stored.
+
+    Pillow rescales netpbm values to 0..255 (maxval < 256) or 0..65535 with rounding, and
+    keeps the declared maxval only in the arguments of its "ppm" / "ppm_plain" decoders
+    (``tile[0]`` = (decoder, box, offset, (rawmode, maxval))). Read before ``load()``.
+    """
+    if im.format != "PPM" or not im.tile:
+        return None
+    args = im.tile[0][3]
+    if isinstance(args, tuple) and len(args) == 2 and isinstance(args[1], int):
+        return int(args[1])
+    return None
+
+
+def _pixels(im: Image.Image, declared: int | None, where: str) -> tuple[Pixels, int, bool]:
+    """Pixels (h, w, channels), white level and has-alpha of a loaded Pillow image."""
+    mode = im.mode
+    if mode == "1":
+        return np.asarray(im.convert("L"), dtype=np.uint16)[:, :, None], 255, False
+    if mode == "P":
+        index = np.asarray(im)
+        palette = np.array(im.getpalette("RGB") or [], dtype=np.uint16).reshape(-1, 3)
+        if index.size and int(index.max()) >= len(palette):
+            raise MapError(
+                f"{where}: corrupt PNG (palette index {int(index.max())} beyond its "
+                f"{len(palette)} colours); re-export the image"
+            )
+        return palette[index], 255, False  # transparency is ignored, as map_server does
+    if mode in ("L", "LA", "RGB", "RGBA"):
+        full = 255
+    elif mode in ("I", "I;16", "I;16B", "I;16L"):
+        full = 65535
+    else:
         raise MapError(
-            f"{where}: not a PGM image (magic {magic!r}, expected P2 or P5); "
-            "convert it to a grayscale PGM or PNG"
+            f"{where}: unsupported pixel format {mode!r}; save the map as an 8 or 16 bit "
+            "gray, RGB or RGBA PNG, or as a PGM"
         )
-    pos = 2
-    values: list[int] = []
-    names = ("width", "height", "maxval")
-    while len(values) < 3:
-        while pos < len(data):
-            c = data[pos : pos + 1]
-            if c in _WHITESPACE and c:
-                pos += 1
-            elif c == b"#":
-                while pos < len(data) and data[pos : pos + 1] not in (b"\n", b"\r"):
-                    pos += 1
-            else:
-                break
-        start = pos
-        while pos < len(data) and data[pos : pos + 1] not in _WHITESPACE + b"#":
-            pos += 1
-        token = data[start:pos]
-        if not token:
-            raise MapError(
-                f"{where}: truncated PGM header (no {names[len(values)]}); the file is "
-                "corrupt, re-export the image"
-            )
-        if not token.isdigit() or len(token) > 9:
-            raise MapError(
-                f"{where}: corrupt PGM header: {names[len(values)]} is {token[:20]!r}, "
-                "expected a positive integer; re-export the image"
-            )
-        values.append(int(token))
-    if pos >= len(data) or data[pos : pos + 1] not in _WHITESPACE:
-        raise MapError(f"{where}: truncated PGM: no pixel data after the header; re-export it")
-    width, height, maxval = values
-    if width < 1 or height < 1:
-        raise MapError(f"{where}: PGM has zero width or height ({width} × {height})")
-    if not 1 <= maxval <= 65535:
-        raise MapError(f"{where}: PGM maxval must be in 1..65535, got {maxval}")
-    if width * height > _MAX_CELLS:
-        raise MapError(f"{where}: PGM of {width} × {height} pixels is too large")
-    return magic, width, height, maxval, pos + 1
+    values = np.asarray(im)
+    if values.ndim == 2:
+        values = values[:, :, None]
+    if declared is not None and declared != full and mode in ("L", "I"):
+        # Undo Pillow's rescaling v' = round(v · full / declared): exact, since
+        # full / declared > 1 spaces the rescaled levels at least one apart.
+        values = np.rint(values * (declared / full))
+        full = declared
+    return values.astype(np.uint16), full, mode in ("LA", "RGBA")
 
 
-def read_pgm(path: str | os.PathLike[str]) -> tuple[NDArray[np.uint16], int]:
-    """Read a PGM image (binary P5 or ASCII P2, 8 or 16 bit).
-
-    Parameters
-    ----------
-    path : str or path-like
-        The image file.
+def _decode_image(data: bytes, where: str) -> tuple[Pixels, int, bool]:
+    """Decode a PNG or netpbm image held in ``data``.
 
     Returns
     -------
-    image : ndarray of uint16, shape (height, width)
-        Gray values, row 0 the top of the image.
+    pixels : ndarray of uint16, shape (h, w, channels)
+        Gray, gray + alpha, RGB or RGBA levels, row 0 the top of the image. Palette
+        images come back as RGB; bitmaps and 2- and 4-bit gray PNGs scaled to 0..255;
+        16-bit RGB(A) PNGs as their high bytes (Pillow keeps 8 bits per colour channel,
+        as map_server's libpng reader does).
     maxval : int
-        The white level (1..65535).
+        The white level: 255, 65535 or a PGM's declared maxval.
+    has_alpha : bool
+        Whether the last channel is opacity.
 
     Raises
     ------
     MapError
-        If the file is missing, corrupt, truncated or its size does not match its header.
+        If the image is not a PNG or netpbm image, is corrupt or truncated, or is larger
+        than the map budget (checked from its header, before decoding).
     """
-    p = Path(path)
-    return _decode_pgm(read_bytes(p, str(p)), str(p))
-
-
-def _decode_pgm(data: bytes, where: str) -> tuple[NDArray[np.uint16], int]:
-    magic, w, h, maxval, off = _pgm_header(data, where)
-    n = w * h
-    if magic == b"P5":
-        nbytes = 1 if maxval < 256 else 2
-        body = data[off:]
-        need = n * nbytes
-        if len(body) < need:
+    kind = _kind(data)
+    with warnings.catch_warnings():
+        # The size is checked against the map budget below, before any pixel is decoded.
+        warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+        try:
+            im = Image.open(io.BytesIO(data), formats=_IMAGE_FORMATS)
+        except Image.DecompressionBombError as exc:
+            raise MapError(f"{where}: image too large ({exc})") from None
+        except Image.UnidentifiedImageError:
+            if kind != "image":
+                raise MapError(
+                    f"{where}: corrupt or truncated {kind} (its header cannot be read); "
+                    "re-export the image"
+                ) from None
             raise MapError(
-                f"{where}: truncated PGM: the header says {w} × {h} pixels ({need} bytes) but "
-                f"only {len(body)} bytes follow; the file is corrupt, re-export it"
-            )
-        if body[need:].strip(_WHITESPACE):
+                f"{where}: unsupported image format (expected a PGM or PNG image, or "
+                "another netpbm P1–P6 image); convert the image to PGM or PNG"
+            ) from None
+        except Exception as exc:  # Pillow raises many types on corrupt headers
+            raise MapError(f"{where}: corrupt {kind} header ({exc}); re-export the image") from None
+    with im:
+        w, h = im.size
+        if w < 1 or h < 1 or w * h > _MAX_CELLS:
+            raise MapError(f"{where}: image size {w} × {h} is empty or too large")
+        declared = _declared_maxval(im)
+        try:
+            im.load()
+        except Exception as exc:  # Pillow raises many types on corrupt pixel data
             raise MapError(
-                f"{where}: PGM has {len(body) - need} bytes beyond the {w} × {h} pixels its "
-                "header declares; the image dimensions are inconsistent, re-export it"
-            )
-        dtype = np.dtype(np.uint8) if nbytes == 1 else np.dtype(">u2")
-        img = np.frombuffer(body, dtype=dtype, count=n).astype(np.uint16)
-    else:
-        text = b"\n".join(line.split(b"#", 1)[0] for line in data[off:].splitlines())
-        tokens = text.split()
-        if len(tokens) != n:
-            what = "truncated" if len(tokens) < n else "inconsistent"
-            raise MapError(
-                f"{where}: {what} PGM: the header says {w} × {h} = {n} pixels but {len(tokens)} "
-                "values follow; fix the header or re-export the image"
-            )
-        bad = next((t for t in tokens if not t.isdigit() or len(t) > 5), None)
-        if bad is not None:
-            raise MapError(
-                f"{where}: corrupt PGM: pixel value {bad[:20]!r} is not an integer in "
-                f"0..{maxval}; re-export the image"
-            )
-        img = np.array([int(t) for t in tokens], dtype=np.int64)
-        if np.any(img > maxval):
-            raise MapError(
-                f"{where}: corrupt PGM: pixel values exceed maxval {maxval}; re-export the image"
-            )
-        img = img.astype(np.uint16)
-    if np.any(img > maxval):
-        raise MapError(
-            f"{where}: corrupt PGM: pixel values exceed maxval {maxval}; re-export the image"
-        )
-    return img.reshape(h, w), maxval
+                f"{where}: cannot decode the {kind} ({exc}); the file is corrupt or "
+                "truncated, re-export it"
+            ) from None
+        return _pixels(im, declared, where)
 
 
-def write_pgm(
-    path: str | os.PathLike[str],
-    image: ArrayLike,
-    *,
-    maxval: int | None = None,
-    binary: bool = True,
-) -> None:
-    """Write a grayscale PGM image atomically.
-
-    Parameters
-    ----------
-    path : str or path-like
-        Output file.
-    image : array_like of int, shape (height, width)
-        Gray values in ``0..maxval``; row 0 is the top of the image.
-    maxval : int, optional
-        White level (1..65535); default 255, or 65535 if a value exceeds 255.
-    binary : bool
-        P5 (binary, big-endian for 16 bit) if True, else P2 (ASCII).
-    """
-    img = np.asarray(image)
-    if img.ndim != 2 or img.size == 0 or not np.issubdtype(img.dtype, np.integer):
-        raise ConfigError(f"PGM image must be a non-empty 2D integer array, got {img.shape}")
-    if maxval is None:
-        maxval = 255 if int(img.max()) <= 255 else 65535
-    if not 1 <= maxval <= 65535 or int(img.min()) < 0 or int(img.max()) > maxval:
-        raise ConfigError(f"PGM values must lie in 0..maxval with maxval in 1..65535 ({maxval})")
-    h, w = img.shape
-    header = f"{'P5' if binary else 'P2'}\n# gracenav map\n{w} {h}\n{maxval}\n".encode("ascii")
-    if binary:
-        body = img.astype(np.uint8 if maxval < 256 else ">u2").tobytes()
-    else:
-        body = "\n".join(" ".join(str(int(v)) for v in row) for row in img).encode() + b"\n"
-    atomic_write_bytes(Path(path), header + body)
-
-
-# PNG: decoded here with zlib and numpy instead of matplotlib.image.imread. imread (via
-# Pillow, a dependency we do not take) returns normalised floats and, in matplotlib 3.11,
-# mis-scales 2- and 4-bit grayscale images (values come back > 1); map thresholds need
-# the exact integer gray levels. The decoder handles every non-interlaced PNG: gray,
-# gray+alpha, RGB, RGBA and palette, 1–16 bit, all five row filters. The filters are
-# undone along anti-diagonals (each pixel depends on its left, upper and upper-left
-# neighbours only), so a 1000 × 1000 image takes ~2000 vectorised steps.
-
-_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-_PNG_CHANNELS = {0: 1, 2: 3, 3: 1, 4: 2, 6: 4}
-_PNG_DEPTHS = {0: (1, 2, 4, 8, 16), 2: (8, 16), 3: (1, 2, 4, 8), 4: (8, 16), 6: (8, 16)}
-
-
-def _png_unfilter(
-    filtered: NDArray[np.uint8], ftype: NDArray[np.uint8], bpp: int
-) -> NDArray[np.uint8]:
-    """Undo PNG row filters. ``filtered`` (h, stride) bytes, ``ftype`` (h,), ``bpp`` bytes
-    per pixel (>= 1); returns the reconstructed bytes (h, stride)."""
-    h, stride = filtered.shape
-    if not np.any(ftype):
-        return filtered.copy()
-    npx = stride // bpp
-    f = filtered.reshape(h, npx, bpp).astype(np.int16)
-    rec = np.zeros((h + 1, npx + 1, bpp), dtype=np.int16)  # zero row/column of padding
-    ft = ftype.astype(np.int16)
-    for d in range(h + npx - 1):
-        r = np.arange(max(0, d - npx + 1), min(h, d + 1))
-        c = d - r
-        a = rec[r + 1, c]  # left
-        b = rec[r, c + 1]  # up
-        cc = rec[r, c]  # up-left
-        pa, pb, pc = np.abs(b - cc), np.abs(a - cc), np.abs(a + b - 2 * cc)
-        paeth = np.where((pa <= pb) & (pa <= pc), a, np.where(pb <= pc, b, cc))
-        t = ft[r][:, None]
-        pred = np.select([t == 1, t == 2, t == 3, t == 4], [a, b, (a + b) >> 1, paeth], 0)
-        rec[r + 1, c + 1] = (f[r, c] + pred) & 0xFF
-    return rec[1:, 1:].reshape(h, stride).astype(np.uint8)
-
-
-def _decode_png(data: bytes, where: str) -> tuple[NDArray[np.uint16], int, bool]:
-    """Pixels (h, w, channels) as RGB(A)/gray(+alpha), maxval, and whether the last
-    channel is alpha."""
-    pos = len(_PNG_SIGNATURE)
-    ihdr: bytes | None = None
-    plte: bytes | None = None
-    idat: list[bytes] = []
-    while True:
-        if pos + 8 > len(data):
-            raise MapError(f"{where}: truncated PNG (no IEND chunk); re-export the image")
-        length, ctype = struct.unpack(">I4s", data[pos : pos + 8])
-        end = pos + 12 + length
-        if end > len(data):
-            raise MapError(f"{where}: truncated PNG ({ctype!r} chunk cut short); re-export it")
-        body = data[pos + 8 : pos + 8 + length]
-        if zlib.crc32(ctype + body) != int.from_bytes(data[end - 4 : end], "big"):
-            raise MapError(f"{where}: corrupt PNG (bad CRC in {ctype!r} chunk); re-export it")
-        if ctype == b"IHDR":
-            ihdr = body
-        elif ctype == b"PLTE":
-            plte = body
-        elif ctype == b"IDAT":
-            idat.append(body)
-        elif ctype == b"IEND":
-            break
-        pos = end
-    if ihdr is None or len(ihdr) != 13 or not idat:
-        raise MapError(f"{where}: corrupt PNG (missing IHDR or IDAT chunk); re-export it")
-    w, h, depth, color, comp, filt, interlace = struct.unpack(">IIBBBBB", ihdr)
-    if color not in _PNG_CHANNELS or depth not in _PNG_DEPTHS[color] or comp or filt:
-        raise MapError(
-            f"{where}: corrupt PNG header (bit depth {depth}, colour type {color}); re-export it"
-        )
-    if interlace:
-        raise MapError(
-            f"{where}: interlaced (Adam7) PNG is not supported; save it without interlacing"
-        )
-    if w < 1 or h < 1 or w * h > _MAX_CELLS:
-        raise MapError(f"{where}: PNG size {w} × {h} is empty or too large")
-    channels = _PNG_CHANNELS[color]
-    bits = depth * channels
-    stride = (w * bits + 7) // 8
-    expected = h * (stride + 1)
-    try:
-        inflater = zlib.decompressobj()
-        raw = inflater.decompress(b"".join(idat), expected + 1)
-    except zlib.error as exc:
-        raise MapError(f"{where}: corrupt PNG image data ({exc}); re-export it") from None
-    if len(raw) != expected:
-        what = "truncated" if len(raw) < expected else "inconsistent"
-        raise MapError(
-            f"{where}: {what} PNG: {w} × {h} pixels need {expected} bytes of image data, "
-            f"found {'more' if len(raw) > expected else len(raw)}; re-export the image"
-        )
-    rows = np.frombuffer(raw, dtype=np.uint8).reshape(h, stride + 1)
-    ftype = rows[:, 0]
-    if np.any(ftype > 4):
-        raise MapError(f"{where}: corrupt PNG (unknown row filter type); re-export it")
-    rec = _png_unfilter(rows[:, 1:], ftype, max(1, bits // 8))
-    if depth == 16:
-        values = rec.view(">u2").astype(np.uint16)
-    elif depth == 8:
-        values = rec.astype(np.uint16)
-    else:
-        bitplanes = np.unpackbits(rec, axis=1).reshape(h, -1, depth)
-        weights = (1 << np.arange(depth - 1, -1, -1)).astype(np.uint16)
-        values = (bitplanes.astype(np.uint16) * weights).sum(axis=2, dtype=np.uint16)
-    pixels = values[:, : w * channels].reshape(h, w, channels)
-    maxval = (1 << depth) - 1
-    if color == 3:
-        if plte is None or len(plte) % 3 or not plte:
-            raise MapError(f"{where}: corrupt PNG (palette image without a valid PLTE chunk)")
-        palette = np.frombuffer(plte, dtype=np.uint8).reshape(-1, 3).astype(np.uint16)
-        index = pixels[..., 0]
-        if int(index.max()) >= len(palette):
-            raise MapError(f"{where}: corrupt PNG (palette index out of range); re-export it")
-        return palette[index], 255, False
-    return pixels, maxval, color in (4, 6)
-
-
-def _read_image(path: Path, where: str) -> tuple[NDArray[np.uint16], int, bool]:
-    """Pixels (h, w, c), maxval and has-alpha of a PGM or PNG file (kind from its bytes)."""
-    data = read_bytes(path, where)
-    if data.startswith(_PNG_SIGNATURE):
-        return _decode_png(data, where)
-    if data[:2] in (b"P2", b"P5"):
-        img, maxval = _decode_pgm(data, where)
-        return img[:, :, None], maxval, False
-    raise MapError(
-        f"{where}: unsupported image format (expected a PGM P2/P5 or a PNG); "
-        "convert the image to PGM or PNG"
-    )
+# ----------------------------------------------------------------------------------------
+# ROS map_server maps
+# ----------------------------------------------------------------------------------------
 
 
 def map_from_ros_yaml(doc: Mapping[Any, Any], path: Path) -> WorldMap:
@@ -375,7 +215,7 @@ def map_from_ros_yaml(doc: Mapping[Any, Any], path: Path) -> WorldMap:
             f"{where}: field 'image': file {image_path} not found; the image path is relative "
             "to the YAML file's folder"
         )
-    pixels, maxval, has_alpha = _read_image(image_path, image_where)
+    pixels, maxval, has_alpha = _decode_image(read_bytes(image_path, image_where), image_where)
     occupied, unknown = _classify(pixels, maxval, has_alpha, bool(negate), occ_th, free_th, mode)
     return WorldMap(
         np.array([ox, oy]),
@@ -388,7 +228,7 @@ def map_from_ros_yaml(doc: Mapping[Any, Any], path: Path) -> WorldMap:
 
 
 def _classify(
-    pixels: NDArray[np.uint16],
+    pixels: Pixels,
     maxval: int,
     has_alpha: bool,
     negate: bool,
@@ -428,9 +268,9 @@ def save_ros_map(
     world_map: WorldMap,
     path: str | os.PathLike[str],
     *,
-    binary: bool = True,
+    image_format: Literal["pgm", "png"] = "pgm",
 ) -> Path:
-    """Write ``world_map`` as a ROS map_server map: ``path`` (YAML) and a PGM beside it.
+    """Write ``world_map`` as a ROS map_server map: ``path`` (YAML) and an image beside it.
 
     Occupied cells are written 0, unknown 205 and free 254 (map_saver's levels) with
     ``negate: 0``, ``occupied_thresh: 0.65``, ``free_thresh: 0.196``, so
@@ -441,22 +281,28 @@ def save_ros_map(
     world_map : WorldMap
         The map to save.
     path : str or path-like
-        The YAML file; the image is written next to it with suffix ``.pgm``.
-    binary : bool
-        Binary P5 (default) or ASCII P2 PGM.
+        The YAML file; the image is written next to it with the suffix of its format.
+    image_format : {"pgm", "png"}
+        An 8-bit binary PGM (P5, as map_saver writes) or an 8-bit gray PNG.
 
     Returns
     -------
     Path
         The image file written.
     """
+    if image_format not in ("pgm", "png"):
+        raise ConfigError(f"image_format must be 'pgm' or 'png', got {image_format!r}")
     yaml_path = Path(path)
-    image_path = yaml_path.with_suffix(".pgm")
-    img = np.full(world_map.grid_shape, 254, dtype=np.uint16)
+    image_path = yaml_path.with_suffix(f".{image_format}")
+    img = np.full(world_map.grid_shape, 254, dtype=np.uint8)
     img[world_map.occupied] = 0
     if world_map.unknown is not None:
         img[world_map.unknown] = 205
-    write_pgm(image_path, img[::-1], maxval=255, binary=binary)
+    buf = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(img[::-1])).save(
+        buf, format="PPM" if image_format == "pgm" else "PNG"
+    )
+    atomic_write_bytes(image_path, buf.getvalue())
     name = image_path.name
     if not re.fullmatch(r"[A-Za-z0-9_.+-]+", name):
         name = json.dumps(name)  # a JSON string is a valid YAML scalar
