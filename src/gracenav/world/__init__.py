@@ -11,19 +11,23 @@ instantiated on a map M and kept only where they are obstacle free). It comes fr
   (:mod:`~gracenav.world.occupancy`); the exact shapes are kept for plotting; or
 * the synthetic office of :mod:`~gracenav.world.synthetic`.
 
-:func:`load_map` reads any of the first two.
+:func:`load_map` reads any of the first two. Every map is held to a budget of
+:data:`MAX_MAP_CELLS` cells, checked before its grid or image is allocated.
 """
 
 from __future__ import annotations
 
 from gracenav.world.geometry import Circle, Polygon, Rectangle, Shape
-from gracenav.world.loading import load_map
-from gracenav.world.occupancy import DEFAULT_RESOLUTION, WorldMap
+from gracenav.world.loading import MAX_MAP_FILE_BYTES, load_map
+from gracenav.world.occupancy import DEFAULT_RESOLUTION, MAP_BYTES_PER_CELL, MAX_MAP_CELLS, WorldMap
 from gracenav.world.ros_map import save_ros_map
 from gracenav.world.synthetic import office_map
 
 __all__ = [
     "DEFAULT_RESOLUTION",
+    "MAP_BYTES_PER_CELL",
+    "MAX_MAP_CELLS",
+    "MAX_MAP_FILE_BYTES",
     "Circle",
     "Polygon",
     "Rectangle",

@@ -14,13 +14,21 @@ from typing import Any
 
 import yaml
 
+from gracenav._io import yaml_error_message
 from gracenav.errors import MapError
 from gracenav.world._checks import read_bytes
 from gracenav.world.inline import map_from_description
 from gracenav.world.occupancy import INLINE, WorldMap
 from gracenav.world.ros_map import map_from_ros_yaml
 
-__all__ = ["load_map"]
+__all__ = ["MAX_MAP_FILE_BYTES", "load_map"]
+
+#: Largest map description file (bytes) read: a YAML/JSON map is a few hundred bytes (a
+#: ROS map) to a few hundred kilobytes (an inline map with many obstacles); a larger file
+#: is almost certainly not a map description, and parsing it would take gigabytes.
+MAX_MAP_FILE_BYTES = 16 * 2**20
+
+_IMAGE_MAGIC = (b"\x89PNG", b"P1", b"P2", b"P3", b"P4", b"P5", b"P6", b"\xff\xd8", b"GIF8", b"BM")
 
 
 def load_map(source: str | os.PathLike[str] | Mapping[str, Any]) -> WorldMap:
@@ -41,7 +49,10 @@ def load_map(source: str | os.PathLike[str] | Mapping[str, Any]) -> WorldMap:
     Raises
     ------
     MapError
-        If the file is missing or malformed; the message names the file (or
+        If the file is missing, not UTF-8, not a mapping, larger than
+        :data:`MAX_MAP_FILE_BYTES` or malformed, or its image is missing or unreadable, or
+        the map would exceed :data:`~gracenav.world.occupancy.MAX_MAP_CELLS` cells (checked
+        before the grid or the image is allocated); the message names the file (or
         ``"inline map"``) and the offending field, and says how to fix it.
 
     Notes
@@ -63,15 +74,40 @@ def load_map(source: str | os.PathLike[str] | Mapping[str, Any]) -> WorldMap:
     except TypeError:
         raise MapError(f"map source {source!r} is not a valid path") from None
     where = str(path)
+    try:
+        size = path.stat().st_size if path.is_file() else 0
+    except OSError:
+        size = 0  # read_bytes reports it
+    if size > MAX_MAP_FILE_BYTES:
+        raise MapError(
+            f"{where}: the file is {size / 2**20:.0f} MiB; a map description (YAML/JSON) is at "
+            f"most {MAX_MAP_FILE_BYTES // 2**20} MiB: give the map's YAML file, not its image"
+        )
     data = read_bytes(path, where)
     try:
-        doc = yaml.safe_load(data.decode("utf-8"))
-    except UnicodeDecodeError:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        if data.startswith(_IMAGE_MAGIC):
+            raise MapError(
+                f"{where}: not a text file; give the map's YAML file, not its image"
+            ) from None
         raise MapError(
-            f"{where}: not a text file; give the map's YAML file, not its image"
+            f"{where}: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset {exc.start}); "
+            "save the map file as UTF-8"
         ) from None
-    except (yaml.YAMLError, ValueError, RecursionError) as exc:
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise MapError(
+            f"{where}: not valid YAML/JSON ({yaml_error_message(exc)}); fix the syntax"
+        ) from None
+    except (ValueError, RecursionError) as exc:
         raise MapError(f"{where}: not valid YAML/JSON ({exc}); fix the syntax") from None
+    if doc is None:
+        raise MapError(
+            f"{where}: the file is empty; a map file holds a mapping with key 'image' (ROS "
+            "map) or 'bounds' (inline geometry)"
+        )
     if not isinstance(doc, Mapping):
         raise MapError(
             f"{where}: a map file must hold a mapping with key 'image' (ROS map) or "

@@ -25,9 +25,9 @@ from PIL import Image, ImageFile
 
 from gracenav._io import atomic_write_bytes, atomic_write_text
 from gracenav.errors import ConfigError, MapError
-from gracenav.world._checks import check_keys, positive_field, read_bytes, real_field
+from gracenav.world._checks import check_keys, positive_field, real_field
 from gracenav.world.geometry import BoolArray
-from gracenav.world.occupancy import _MAX_CELLS, WorldMap
+from gracenav.world.occupancy import MAX_MAP_CELLS, WorldMap, check_map_budget
 
 __all__ = ["map_from_ros_yaml", "save_ros_map"]
 
@@ -42,6 +42,11 @@ _ROS_MODES = ("trinary", "scale", "raw")
 _IMAGE_FORMATS = ("PNG", "PPM")  # Pillow's names; its PPM plugin reads PBM, PGM and PPM
 
 Pixels: TypeAlias = NDArray[np.uint16]
+
+_TOO_LARGE = (
+    "crop the image to the area the robot uses (map_server maps are often mostly unknown "
+    "space), or downsample it and scale 'resolution' to match"
+)
 
 _NETPBM_KINDS = {b"P1": "PBM", b"P4": "PBM", b"P2": "PGM", b"P5": "PGM", b"P3": "PPM", b"P6": "PPM"}
 
@@ -102,8 +107,8 @@ def _pixels(im: Image.Image, declared: int | None, where: str) -> tuple[Pixels, 
     return values.astype(np.uint16), full, mode in ("LA", "RGBA")
 
 
-def _decode_image(data: bytes, where: str) -> tuple[Pixels, int, bool]:
-    """Decode a PNG or netpbm image held in ``data``.
+def _decode_image(source: bytes | Path, where: str) -> tuple[Pixels, int, bool]:
+    """Decode a PNG or netpbm image: a file, or its bytes.
 
     Returns
     -------
@@ -123,14 +128,25 @@ def _decode_image(data: bytes, where: str) -> tuple[Pixels, int, bool]:
         If the image is not a PNG or netpbm image, is corrupt or truncated, or is larger
         than the map budget (checked from its header, before decoding).
     """
-    kind = _kind(data)
+    if isinstance(source, Path):
+        try:
+            with source.open("rb") as fh:
+                kind = _kind(fh.read(8))
+            fp: Path | io.BytesIO = source
+        except OSError as exc:
+            raise MapError(f"{where}: cannot read the file ({exc.strerror})") from None
+    else:
+        kind, fp = _kind(source), io.BytesIO(source)
     with warnings.catch_warnings():
         # The size is checked against the map budget below, before any pixel is decoded.
         warnings.simplefilter("ignore", Image.DecompressionBombWarning)
         try:
-            im = Image.open(io.BytesIO(data), formats=_IMAGE_FORMATS)
+            im = Image.open(fp, formats=_IMAGE_FORMATS)
         except Image.DecompressionBombError as exc:
-            raise MapError(f"{where}: image too large ({exc})") from None
+            raise MapError(
+                f"{where}: the image is far larger than the map budget of {MAX_MAP_CELLS:,} "
+                f"cells ({exc}); {_TOO_LARGE}"
+            ) from None
         except Image.UnidentifiedImageError:
             if kind != "image":
                 raise MapError(
@@ -145,8 +161,9 @@ def _decode_image(data: bytes, where: str) -> tuple[Pixels, int, bool]:
             raise MapError(f"{where}: corrupt {kind} header ({exc}); re-export the image") from None
     with im:
         w, h = im.size
-        if w < 1 or h < 1 or w * h > _MAX_CELLS:
-            raise MapError(f"{where}: image size {w} × {h} is empty or too large")
+        if w < 1 or h < 1:
+            raise MapError(f"{where}: the image is empty ({w} × {h} pixels); re-export it")
+        check_map_budget(h, w, where, _TOO_LARGE)
         declared = _declared_maxval(im)
         try:
             im.load()
@@ -215,7 +232,7 @@ def map_from_ros_yaml(doc: Mapping[Any, Any], path: Path) -> WorldMap:
             f"{where}: field 'image': file {image_path} not found; the image path is relative "
             "to the YAML file's folder"
         )
-    pixels, maxval, has_alpha = _decode_image(read_bytes(image_path, image_where), image_where)
+    pixels, maxval, has_alpha = _decode_image(image_path, image_where)
     occupied, unknown = _classify(pixels, maxval, has_alpha, bool(negate), occ_th, free_th, mode)
     return WorldMap(
         np.array([ox, oy]),
@@ -248,11 +265,10 @@ def _classify(
     channels = pixels.shape[2]
     colour = channels - 1 if has_alpha else channels
     use = channels if (has_alpha and mode == "trinary") else colour
-    sel = pixels[:, :, :use].astype(np.float64)
     if colour == 1 and use == 2:  # gray + alpha: the gray counts as R, G and B
-        mean = (3.0 * sel[:, :, 0] + sel[:, :, 1]) / 4.0
-    else:
-        mean = sel.sum(axis=2) / use
+        mean = (3.0 * pixels[:, :, 0] + pixels[:, :, 1]) / 4.0
+    else:  # sums of integer levels are exact in float64
+        mean = pixels[:, :, :use].sum(axis=2, dtype=np.float64) / use
     if mode == "raw":
         value = maxval - mean if negate else mean
         free = value == 0.0
