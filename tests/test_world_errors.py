@@ -20,6 +20,9 @@ from gracenav.world import (
     MAP_BYTES_PER_CELL,
     MAX_MAP_CELLS,
     MAX_MAP_FILE_BYTES,
+    Circle,
+    Polygon,
+    Rectangle,
     load_map,
     office_map,
 )
@@ -277,3 +280,24 @@ def test_every_refusal_is_a_gracenav_error() -> None:
     with pytest.raises(GracenavError):
         load_map({"bounds": [[0, 0], [200, 200]]})
     assert np.isfinite(MAP_BYTES_PER_CELL)
+
+
+def test_shapes_with_huge_coordinates_are_refused() -> None:
+    # found by fuzzing: the polygon checks multiplied these into an overflow
+    with pytest.raises(MapError, match=r"polygon point 2 .* is beyond ±1e\+12 m"):
+        Polygon(((0.0, 0.0), (0.0, 1.0), (0.0, 1.3407807929942597e154)))
+    with pytest.raises(MapError, match="rectangle min must be finite"):
+        Rectangle((10**400, 0.0), (1.0, 1.0))
+    with pytest.raises(MapError, match="circle radius must be a positive, finite number"):
+        Circle((0.0, 0.0), 10**400)
+    with pytest.raises(MapError, match="up to 1e\\+12"):
+        Circle((0.0, 0.0), 2e12)
+    msg, _ = refused(
+        lambda: load_map(
+            {
+                "bounds": [[0, 0], [1, 1]],
+                "obstacles": [{"polygon": {"points": [[0, 0], [0, 1], [0, 1e154]]}}],
+            }
+        )
+    )
+    assert msg.startswith("inline map: 'obstacles[0].polygon'") and "beyond" in msg

@@ -18,13 +18,17 @@ from numpy.typing import ArrayLike, NDArray
 
 from gracenav.errors import ConfigError, MapError
 
-__all__ = ["Circle", "Polygon", "Rectangle", "Shape"]
+__all__ = ["MAX_COORDINATE", "Circle", "Polygon", "Rectangle", "Shape"]
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
 _EPS = 1e-9  # m; points this close to a shape's boundary count as inside (closed shapes)
 _PAIR_CHUNK = 1 << 18  # point/edge pairs evaluated at once in polygon tests
+
+#: Largest coordinate or radius magnitude (m) of a shape. Far beyond any map (the cell
+#: budget bounds a map's extent), it keeps the geometry's products of coordinates finite.
+MAX_COORDINATE = 1e12
 
 
 def _points_array(points: ArrayLike) -> FloatArray:
@@ -39,8 +43,14 @@ def _finite_pair(value: Sequence[float], what: str) -> tuple[float, float]:
         x, y = (float(v) for v in value)
     except (TypeError, ValueError):
         raise MapError(f"{what} must be a pair of numbers (x, y) in m, got {value!r}") from None
+    except OverflowError:
+        x = y = math.inf
     if not (math.isfinite(x) and math.isfinite(y)):
         raise MapError(f"{what} must be finite, got ({x}, {y})")
+    if max(abs(x), abs(y)) > MAX_COORDINATE:
+        raise MapError(
+            f"{what} ({x:g}, {y:g}) is beyond ±{MAX_COORDINATE:g} m; give coordinates in metres"
+        )
     return (x, y)
 
 
@@ -113,8 +123,13 @@ class Circle:
             r = float(self.radius)
         except (TypeError, ValueError):
             raise MapError(f"circle radius must be a number (m), got {self.radius!r}") from None
-        if not (math.isfinite(r) and r > 0.0):
-            raise MapError(f"circle radius must be a positive, finite number of metres, got {r}")
+        except OverflowError:
+            r = math.inf
+        if not (math.isfinite(r) and 0.0 < r <= MAX_COORDINATE):
+            raise MapError(
+                f"circle radius must be a positive, finite number of metres up to "
+                f"{MAX_COORDINATE:g}, got {r}"
+            )
         object.__setattr__(self, "center", c)
         object.__setattr__(self, "radius", r)
 
