@@ -113,8 +113,13 @@ def test_budget_boundary_is_inclusive() -> None:
     assert "5,000 × 2,001 = 10,005,000 cells" in msg
 
 
-def test_absurd_inline_resolution_is_refused() -> None:
-    msg, _ = refused(lambda: load_map({"bounds": [[0, 0], [1, 1]], "resolution": 1e-300}))
+@pytest.mark.parametrize(
+    ("bounds", "res"),
+    [([[0, 0], [1, 1]], 1e-300), ([[0, 0], [1e6, 1]], 1e-310), ([[-1e308, 0], [1e308, 1]], 1.0)],
+)
+def test_absurd_inline_extent_is_refused(bounds: list[list[float]], res: float) -> None:
+    # warnings are errors in the tests: no overflow warning on the way either
+    msg, _ = refused(lambda: load_map({"bounds": bounds, "resolution": res}))
     assert "more cells than can be counted" in msg and "coarser 'resolution'" in msg
 
 

@@ -114,6 +114,17 @@ def test_near_valid_inline_maps(
         assert np.all(m.clearance_grid >= 0.0)
 
 
+_any_float = st.floats() | st.sampled_from([1e308, -1e308, 5e-324, 1e-310, 0.05])
+
+
+@FAST
+@given(st.lists(_any_float | st.integers(-3, 3), min_size=4, max_size=4), _any_float)
+def test_any_numbers_as_bounds_and_resolution(v: list[float], res: float) -> None:
+    m = loads_or_refuses({"bounds": [[v[0], v[1]], [v[2], v[3]]], "resolution": res})
+    if m is not None:
+        assert m.grid_shape[0] * m.grid_shape[1] <= 10_000_000
+
+
 @FAST
 @given(_anything | _pair, _anything | _pair, st.lists(_anything | _pair, max_size=6))
 def test_shapes_built_directly(a: Any, b: Any, points: list[Any]) -> None:

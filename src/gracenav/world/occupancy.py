@@ -224,7 +224,8 @@ class WorldMap:
                 f"{where}: 'bounds' max {tuple(b[1])} must exceed min {tuple(b[0])} in x and y; "
                 "give [[xmin, ymin], [xmax, ymax]]"
             )
-        spans = b[1] - b[0]
+        # Python floats: an absurd span or resolution gives inf, never an overflow warning.
+        spans = [float(b[1, k]) - float(b[0, k]) for k in (0, 1)]
         check_map_budget(
             spans[1] / res,
             spans[0] / res,
