@@ -17,7 +17,7 @@ import re
 import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, Literal, TypeAlias
+from typing import IO, Any, Literal, TypeAlias
 
 import numpy as np
 from numpy.typing import NDArray
@@ -128,20 +128,37 @@ def _decode_image(source: bytes | Path, where: str) -> tuple[Pixels, int, bool]:
         If the image is not a PNG or netpbm image, is corrupt or truncated, or is larger
         than the map budget (checked from its header, before decoding).
     """
-    if isinstance(source, Path):
-        try:
-            with source.open("rb") as fh:
-                kind = _kind(fh.read(8))
-            fp: Path | io.BytesIO = source
-        except OSError as exc:
-            raise MapError(f"{where}: cannot read the file ({exc.strerror})") from None
-    else:
-        kind, fp = _kind(source), io.BytesIO(source)
+    try:
+        fp: IO[bytes] = source.open("rb") if isinstance(source, Path) else io.BytesIO(source)
+    except OSError as exc:
+        raise MapError(f"{where}: cannot read the file ({exc.strerror})") from None
+    with fp:
+        kind = _kind(fp.read(8))
+        fp.seek(0)
+        im = _open_image(fp, kind, where)
+        with im:
+            w, h = im.size
+            if w < 1 or h < 1:
+                raise MapError(f"{where}: the image is empty ({w} × {h} pixels); re-export it")
+            check_map_budget(h, w, where, _TOO_LARGE)
+            declared = _declared_maxval(im)
+            try:
+                im.load()
+            except Exception as exc:  # Pillow raises many types on corrupt pixel data
+                raise MapError(
+                    f"{where}: cannot decode the {kind} ({exc}); the file is corrupt or "
+                    "truncated, re-export it"
+                ) from None
+            return _pixels(im, declared, where)
+
+
+def _open_image(fp: IO[bytes], kind: str, where: str) -> ImageFile.ImageFile:
+    """Pillow's lazy image (header read, no pixels decoded) of the PNG or netpbm in ``fp``."""
     with warnings.catch_warnings():
-        # The size is checked against the map budget below, before any pixel is decoded.
+        # The caller checks the size against the map budget before any pixel is decoded.
         warnings.simplefilter("ignore", Image.DecompressionBombWarning)
         try:
-            im = Image.open(fp, formats=_IMAGE_FORMATS)
+            return Image.open(fp, formats=_IMAGE_FORMATS)
         except Image.DecompressionBombError as exc:
             raise MapError(
                 f"{where}: the image is far larger than the map budget of {MAX_MAP_CELLS:,} "
@@ -159,20 +176,6 @@ def _decode_image(source: bytes | Path, where: str) -> tuple[Pixels, int, bool]:
             ) from None
         except Exception as exc:  # Pillow raises many types on corrupt headers
             raise MapError(f"{where}: corrupt {kind} header ({exc}); re-export the image") from None
-    with im:
-        w, h = im.size
-        if w < 1 or h < 1:
-            raise MapError(f"{where}: the image is empty ({w} × {h} pixels); re-export it")
-        check_map_budget(h, w, where, _TOO_LARGE)
-        declared = _declared_maxval(im)
-        try:
-            im.load()
-        except Exception as exc:  # Pillow raises many types on corrupt pixel data
-            raise MapError(
-                f"{where}: cannot decode the {kind} ({exc}); the file is corrupt or "
-                "truncated, re-export it"
-            ) from None
-        return _pixels(im, declared, where)
 
 
 # ----------------------------------------------------------------------------------------
