@@ -30,8 +30,8 @@ import yaml
 
 from gracenav.graph import build_graph
 from gracenav.library import PolicyLibrary, build_library
-from gracenav.maps import WorldMap, load_map
 from gracenav.palette import load_palette
+from gracenav.world import WorldMap, load_map
 
 ROOT = Path(__file__).resolve().parent.parent
 MAPS = {

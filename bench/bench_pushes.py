@@ -36,9 +36,9 @@ import numpy as np
 from gracenav.execution import EventReason, ExecutionOptions, HybridController
 from gracenav.graph import build_graph
 from gracenav.library import build_library
-from gracenav.maps import load_map
 from gracenav.palette import load_palette
 from gracenav.simulate import Push, state_from_position
+from gracenav.world import load_map
 
 ROOT = Path(__file__).resolve().parent.parent
 MAP = ROOT / "examples" / "maps" / "room_5m_box.yaml"

@@ -14,9 +14,9 @@ import yaml
 from gracenav.execution import ExecutionOptions, HybridController, TaskStatus
 from gracenav.graph import build_graph
 from gracenav.library import build_library
-from gracenav.maps import load_map
 from gracenav.palette import load_palette
 from gracenav.simulate import Push, state_from_position
+from gracenav.world import load_map
 
 GOAL = [2.0, 2.0, 0.0, 0.0]
 SCENARIOS = Path(str(resources.files("gracenav") / "data" / "scenarios"))

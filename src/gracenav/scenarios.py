@@ -340,9 +340,9 @@ def run_scenario(
     from gracenav.execution import ExecutionOptions, HybridController
     from gracenav.graph import build_graph
     from gracenav.library import build_library
-    from gracenav.maps import load_map
     from gracenav.palette import load_palette
     from gracenav.simulate import state_from_position
+    from gracenav.world import load_map
 
     palette = palette if palette is not None else load_palette()
     world_map = load_map(scenario.map_source)

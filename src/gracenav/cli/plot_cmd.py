@@ -79,9 +79,9 @@ def run_domain(args: argparse.Namespace) -> int:
 def run_library(args: argparse.Namespace) -> int:
     """Run ``gracenav plot library``."""
     from gracenav.library import build_library
-    from gracenav.maps import load_map
     from gracenav.palette import load_palette
     from gracenav.plotting.library import plot_library
+    from gracenav.world import load_map
 
     lib = build_library(
         load_palette(),
