@@ -58,4 +58,5 @@ def test_plot_commands(tmp_path) -> None:
 def test_palette_show(capsys) -> None:
     assert main(["palette", "show"]) == 0
     out = capsys.readouterr().out
-    assert "rest_to_cruise_x_2_0" in out and "39 policies" in out
+    assert "rest_to_cruise_x_2_0" in out and "capture[S=6G]" in out
+    assert "(40 primitives and their larger-domain variants)" in out

@@ -383,3 +383,42 @@ def test_plot_library(tmp_path) -> None:
     assert out.stat().st_size > 10_000
     out2 = plot_library(lib, tmp_path / "cov.png", coverage=True, seed=1)
     assert out2.stat().st_size > 10_000
+
+
+def test_the_largest_start_domain_that_fits_is_placed() -> None:
+    """Scaled domains: per primitive, orientation and point only the largest verified
+    start domain whose swept D' fits is instantiated (checked against libraries built
+    from each size alone)."""
+    import dataclasses
+    from pathlib import Path
+
+    from gracenav.palette import load_palette
+
+    pal = load_palette()
+    world = load_map(Path(__file__).parent.parent / "examples" / "maps" / "room_5m_box.yaml")
+    lib = build_library(pal, world, max_halvings=0)
+    n_points = lib.lattice_shape[0] * lib.lattice_shape[1]
+    key = lib.types.scale_group[lib.type_index] * n_points + lib.point_index
+    assert np.unique(key).size == len(lib)
+    family = sorted((p for p in pal if p.primitive.name == "capture"), key=lambda p: p.scale)
+    assert len(family) >= 2
+    valid = {}
+    for pol in family:
+        alone = build_library(dataclasses.replace(pal, policies=(pol,)), world, max_halvings=0)
+        valid[pol.name] = set(
+            zip(alone.orientation.tolist(), alone.point_index.tolist(), strict=True)
+        )
+    names = [pal.policies[p].name for p in lib.palette_index]
+    placed = {pol.name: 0 for pol in family}
+    for i, name in enumerate(names):
+        if name not in valid:
+            continue
+        placed[name] += 1
+        where = (int(lib.orientation[i]), int(lib.point_index[i]))
+        assert where in valid[name]
+        larger = [p.name for p in family if p.scale > pal[name].scale]
+        assert all(where not in valid[other] for other in larger)
+    # and every point where some size fits has its largest one
+    everywhere = set().union(*valid.values())
+    assert sum(placed.values()) == len(everywhere)
+    assert placed[family[0].name] > 0 and placed[family[-1].name] > 0

@@ -19,8 +19,10 @@ from gracenav.policies import (
     domain_shape,
     rotate_pairs,
     switch_torque_jumps,
+    verify_placements,
     verify_policy,
 )
+from gracenav.simulate import run_policy
 
 PARAMS = BallbotParams()
 
@@ -72,16 +74,46 @@ def test_domains_of_a_policy(palette) -> None:
     assert pol.start_domain.contains_domain(goal_at_start)
 
 
-def test_palette_has_39_verified_unique_policies(palette) -> None:
-    assert len(palette) == 39
+def test_palette_has_40_verified_primitives_and_larger_variants(palette) -> None:
+    base = palette.base_policies
+    assert len(base) == 40  # 39 as in the paper, plus the capture trim
     assert palette.duplicates == (("cruise_y", "cruise_x rotated by 90°"),)
+    assert len({p.primitive.name for p in base}) == 40
     for pol in palette:
         rep = pol.report
-        assert rep is not None and rep.passed and rep.runs >= 64
+        assert rep is not None and rep.passed and rep.runs >= 128
         assert rep.max_outer_value <= 1.0 and rep.max_goal_value <= 1.0
         assert rep.max_lean <= palette.options.lean_limit
         assert rep.max_torque <= PARAMS.torque_limit
         assert pol.start_radii.position >= pol.goal_radii.position
+    by_name = {p.name: p for p in base}
+    for pol in palette.policies:
+        if not pol.label:
+            continue
+        own = by_name[pol.primitive.name]
+        assert pol.primitive is own.primitive  # variants share the primitive
+        assert pol.goal_radii == own.goal_radii  # and G: graceful connections are kept
+        assert pol.scale in palette.options.scale_ladder and pol.scale > own.scale
+        assert pol.label == f"{own.name}[S={pol.scale:g}G]"
+    capture = max((p for p in palette if p.primitive.name == "capture"), key=lambda p: p.scale)
+    assert capture.scale >= 4.0
+    assert capture.start_radii.velocity >= 0.4  # catches a robot moving at 0.4 m/s
+
+
+def test_largest_capture_domain_holds_from_points_the_verifier_never_used(palette) -> None:
+    """Re-verify the largest capture domain from another boundary set and from random
+    interior states on the 3D model (the sizing saw 64 boundary points only)."""
+    capture = max((p for p in palette if p.primitive.name == "capture"), key=lambda p: p.scale)
+    rep = verify_placements(capture, dataclasses.replace(palette.options, boundary_points=101))
+    assert rep.passed, rep
+    rng = np.random.default_rng(7)
+    u = rng.normal(size=(40, 4))
+    u *= (rng.uniform(size=(40, 1)) ** 0.25) / np.linalg.norm(u, axis=1, keepdims=True)
+    ell = np.linalg.cholesky(np.linalg.inv(capture.start_domain.shape_matrix))
+    for p0 in capture.start_domain.center + u @ ell.T:
+        res = run_policy(capture, p0)
+        assert res.max_domain_value <= 1.0
+        assert capture.goal_domain.value(res.position_state[-1]) <= 1.0
 
 
 @pytest.mark.parametrize("name", ["rest", "cruise_xy", "cruise_x_to_cruise_y_1_1"])

@@ -116,19 +116,18 @@ def _rotate(vectors: FloatArray, k: int) -> FloatArray:
 # --------------------------------------------------------------------------------------
 
 
-def _axis_shape(policy: MotionPolicy, domain: EllipsoidalDomain, which: str) -> FloatArray:
-    """The 2 × 2 per-axis shape M of a domain whose shape matrix is M ⊗ I₂."""
-    p = np.asarray(domain.shape_matrix, dtype=float)
-    m = p[::2, ::2]
-    expected = np.zeros((4, 4))
-    expected[::2, ::2] = expected[1::2, 1::2] = m
-    if np.max(np.abs(p - expected)) > 1e-9 * np.max(np.abs(p)):
-        raise ConfigError(
-            f"palette policy {policy.name!r}: its {which} domain is not invariant under "
-            "rotations of the plane (shape matrix not of the form M ⊗ I₂ in (x, y, ẋ, ẏ)); "
-            "instantiation at 90° steps needs such domains"
-        )
-    return m
+def _axis_shapes(radii: FloatArray, correlation: FloatArray) -> FloatArray:
+    """Per-axis shape matrices M (P, 2, 2) of domains with extents ``radii`` (P, 2)
+    (position m, velocity m/s) and position-velocity correlations ``correlation`` (P,):
+    M = Σ⁻¹ for Σ = [[e_p², r e_p e_v], [r e_p e_v, e_v²]] (the domain's shape matrix is
+    M ⊗ I₂, see :func:`gracenav.domains.correlated_shape`)."""
+    ep, ev, r = radii[:, 0], radii[:, 1], correlation
+    det = (ep * ev) ** 2 * (1.0 - r**2)
+    out = np.empty((radii.shape[0], 2, 2))
+    out[:, 0, 0] = ev**2 / det
+    out[:, 1, 1] = ep**2 / det
+    out[:, 0, 1] = out[:, 1, 0] = -r * ep * ev / det
+    return out
 
 
 @dataclass(frozen=True)
@@ -165,6 +164,10 @@ class PolicyTypes:
     path_length : ndarray, shape (T,)
         XY length of the reference path (m).
     is_trim : ndarray of bool, shape (T,)
+    scale_group : ndarray of int, shape (T,)
+        Types of one primitive at one orientation share a group: the policy sized by
+        bisection and its larger-domain variants. Instantiation keeps, per group and
+        point, only the largest start domain whose swept D' fits.
     """
 
     palette_index: IntArray
@@ -186,6 +189,7 @@ class PolicyTypes:
     duration: FloatArray
     path_length: FloatArray
     is_trim: BoolArray
+    scale_group: IntArray
 
     def __len__(self) -> int:
         return int(self.palette_index.shape[0])
@@ -200,12 +204,19 @@ class PolicyTypes:
         st0 = np.array([p.primitive.states[0] for p in pols]).reshape(n, 8)
         st1 = np.array([p.primitive.states[-1] for p in pols]).reshape(n, 8)
         rate = [PHI_X_DOT, PHI_Y_DOT]
-        m_start = np.array([_axis_shape(p, p.start_domain, "start") for p in pols])
-        m_goal = np.array([_axis_shape(p, p.goal_domain, "goal") for p in pols])
+        corr = np.array([p.correlation for p in pols], dtype=float)
+        r_start = np.array([[p.start_radii.position, p.start_radii.velocity] for p in pols])
+        r_goal = np.array([[p.goal_radii.position, p.goal_radii.velocity] for p in pols])
+        m_start = _axis_shapes(r_start.reshape(n, 2), corr)
+        m_goal = _axis_shapes(r_goal.reshape(n, 2), corr)
         lengths = np.array(
             [np.sum(np.hypot(*np.diff(p.primitive.position[:, :2], axis=0).T)) for p in pols]
         )
         rot = _QUARTER_TURNS  # (4, 2, 2)
+        first_of: dict[str, int] = {}
+        primitive_id = np.array(
+            [first_of.setdefault(p.primitive.name, len(first_of)) for p in pols], dtype=np.int64
+        )
 
         def turn(v: FloatArray) -> FloatArray:
             """(P, 2) vectors at the 4 orientations, type-major: shape (4 P, 2)."""
@@ -227,12 +238,8 @@ class PolicyTypes:
             "start_lean_rate": turn(st0[:, rate]),
             "end_lean_rate": turn(st1[:, rate]),
             "end_offset": turn(last[:, :2] - first[:, :2]),
-            "start_radii": per_type(
-                np.array([[p.start_radii.position, p.start_radii.velocity] for p in pols])
-            ).reshape(-1, 2),
-            "goal_radii": per_type(
-                np.array([[p.goal_radii.position, p.goal_radii.velocity] for p in pols])
-            ).reshape(-1, 2),
+            "start_radii": per_type(r_start).reshape(-1, 2),
+            "goal_radii": per_type(r_goal).reshape(-1, 2),
             "start_shape": per_type(m_start).reshape(-1, 2, 2),
             "goal_shape": per_type(m_goal).reshape(-1, 2, 2),
             "start_xy_radius": per_type(
@@ -241,6 +248,8 @@ class PolicyTypes:
             "duration": per_type(np.array([p.duration for p in pols], dtype=float)),
             "path_length": per_type(lengths),
             "is_trim": per_type(np.array([p.primitive.is_trim for p in pols], dtype=bool)),
+            "scale_group": ORIENTATIONS * per_type(primitive_id)
+            + np.tile(np.arange(ORIENTATIONS, dtype=np.int64), n),
         }
         return cls(**{k: _readonly(v) for k, v in arrays.items()})
 
@@ -717,11 +726,10 @@ class _Sweep:
     total_reach: float  # bound around the start point
 
 
-def _sweep(policy: MotionPolicy, step: float) -> _Sweep:
-    """Select reference samples at most ``step`` of arc (plus one tick) apart and the
-    conservative reach of D' around each (see :func:`build_library`)."""
+def _sweep_samples(policy: MotionPolicy, step: float) -> tuple[FloatArray, FloatArray, IntArray]:
+    """The reference path relative to its start (T+1, 2), its arc length at each tick
+    (T+1,) and the ticks selected at most ``step`` of arc (plus one tick) apart."""
     prim = policy.primitive
-    cp = policy.outer_factors[0]
     pos = prim.position[:, :2] - prim.position[0, :2]
     seg = np.hypot(*np.diff(pos, axis=0).T)
     cum = np.concatenate([[0.0], np.cumsum(seg)])
@@ -729,6 +737,20 @@ def _sweep(policy: MotionPolicy, step: float) -> _Sweep:
     targets = np.arange(int(cum[-1] // step) + 2) * step
     picked = np.clip(np.searchsorted(cum, targets, side="right") - 1, 0, n_ticks)
     sel = np.unique(np.concatenate([[0], picked, [n_ticks]]))
+    return pos, cum, sel
+
+
+def _sweep(
+    policy: MotionPolicy,
+    step: float,
+    samples: tuple[FloatArray, FloatArray, IntArray] | None = None,
+) -> _Sweep:
+    """Select reference samples at most ``step`` of arc (plus one tick) apart and the
+    conservative reach of D' around each (see :func:`build_library`). ``samples``:
+    :func:`_sweep_samples` of the policy's primitive, if already computed."""
+    prim = policy.primitive
+    cp = policy.outer_factors[0]
+    pos, cum, sel = samples if samples is not None else _sweep_samples(policy, step)
     rp, _ = policy.radii(sel * prim.dt)
     outer = np.asarray(rp, dtype=float) * cp
     reach = outer.copy()
@@ -746,6 +768,25 @@ def _sweep(policy: MotionPolicy, step: float) -> _Sweep:
     greach = np.maximum.reduceat(np.hypot(*(offsets - centres[own]).T) + reach, first)
     total = float(np.max(np.hypot(*offsets.T) + reach))
     return _Sweep(offsets, reach, centres, greach, first, size, total)
+
+
+def _palette_tables(palette: Palette, step: float) -> tuple[PolicyTypes, dict[str, NDArray[Any]]]:
+    """The palette's types and swept outer domain tables for sweep step ``step``: they
+    depend on the palette only, so they are computed once per palette and step."""
+    key = f"library-tables-{step!r}"
+    cached = palette._derived.get(key)
+    if cached is None:
+        samples: dict[int, tuple[FloatArray, FloatArray, IntArray]] = {}
+        sweeps = []
+        for pol in palette.policies:
+            got = samples.get(id(pol.primitive))
+            if got is None:
+                got = samples[id(pol.primitive)] = _sweep_samples(pol, step)
+            sweeps.append(_sweep(pol, step, got))
+        cached = (PolicyTypes.from_palette(palette), _sweep_tables(sweeps))
+        palette._derived[key] = cached
+    types, tables = cached
+    return types, tables
 
 
 def _lattice(world_map: WorldMap, spacing: float) -> tuple[FloatArray, int, int, FloatArray]:
@@ -836,27 +877,37 @@ def _instantiate(
 ) -> PolicyLibrary:
     origin, nx, ny, points = _lattice(world_map, spacing)
     c0 = world_map.clearance(points)
-    accepted: list[IntArray] = []
-    undecided_t: list[IntArray] = []
-    undecided_q: list[IntArray] = []
-    n_types = len(types)
-    for t in range(n_types):
-        maybe = np.flatnonzero(c0 >= footprint + tables["sample_first_reach"][t])
-        sure = c0[maybe] >= footprint + tables["type_total_reach"][t]
-        accepted.append(maybe[sure])
-        rest = maybe[~sure]
-        undecided_q.append(rest)
-        undecided_t.append(np.full(rest.size, t, dtype=np.int64))
-    if n_types:
+    n_points = points.shape[0]
+    # Start domain sizes from the largest down: a scale group (a policy and its larger
+    # variants at one orientation) takes at each point the largest size that fits, so
+    # a smaller size is only checked where every larger one failed.
+    taken = np.zeros((int(types.scale_group.max(initial=-1)) + 1, n_points), dtype=bool)
+    found_t: list[IntArray] = []
+    found_q: list[IntArray] = []
+    for size in np.unique(types.start_radii[:, 0])[::-1]:
+        sure_t: list[IntArray] = []
+        sure_q: list[IntArray] = []
+        undecided_t: list[IntArray] = []
+        undecided_q: list[IntArray] = []
+        for t in np.flatnonzero(types.start_radii[:, 0] == size):
+            maybe = np.flatnonzero(
+                (c0 >= footprint + tables["sample_first_reach"][t]) & ~taken[types.scale_group[t]]
+            )
+            sure = c0[maybe] >= footprint + tables["type_total_reach"][t]
+            sure_q.append(maybe[sure])
+            sure_t.append(np.full(int(np.count_nonzero(sure)), t, dtype=np.int64))
+            undecided_q.append(maybe[~sure])
+            undecided_t.append(np.full(int(np.count_nonzero(~sure)), t, dtype=np.int64))
         ut, uq = np.concatenate(undecided_t), np.concatenate(undecided_q)
         ok = _check_sweeps(world_map, points, ut, uq, tables, footprint)
-        ut, uq = ut[ok], uq[ok]
-        # Merge per type, keeping type-major, point-ascending order.
-        sure_t = np.concatenate(
-            [np.full(a.size, t, dtype=np.int64) for t, a in enumerate(accepted)]
-        )
-        all_t = np.concatenate([sure_t, ut])
-        all_q = np.concatenate([np.concatenate(accepted), uq])
+        lt = np.concatenate([*sure_t, ut[ok]])
+        lq = np.concatenate([*sure_q, uq[ok]])
+        taken[types.scale_group[lt], lq] = True
+        found_t.append(lt)
+        found_q.append(lq)
+    if found_t:
+        all_t, all_q = np.concatenate(found_t), np.concatenate(found_q)
+        # Type-major, point-ascending order.
         order = np.lexsort((all_q, all_t))
         typ, pt = all_t[order], all_q[order]
     else:
@@ -1109,8 +1160,7 @@ def build_library(
     )
     footprint = float(footprint_radius)
     step = float(sweep_step) if sweep_step is not None else float(world_map.resolution)
-    types = PolicyTypes.from_palette(palette)
-    tables = _sweep_tables([_sweep(p, step) for p in palette.policies])
+    types, tables = _palette_tables(palette, step)
     samples = sample_position_states(
         world_map,
         coverage_samples,

@@ -56,12 +56,12 @@ __all__ = [
     "shipped_palette_path",
 ]
 
-PALETTE_FORMAT = 2
+PALETTE_FORMAT = 3
 #: Primitives are stored at every COARSE_STRIDE-th control tick (1/128 s) and
 #: rebuilt exactly enough (see SampledPrimitive.from_coarse) when loaded.
 COARSE_STRIDE = 8
 #: Bumped whenever the planner, controller or verification code changes results.
-ALGORITHM_VERSION = "1"
+ALGORITHM_VERSION = "2"
 #: Largest relative difference (see ControllerGains.relative_difference) between a
 #: palette's stored gains and the gains requested of it that still counts as the
 #: same design. Rebuilding the gains on another numpy/scipy build changes them by
@@ -117,7 +117,10 @@ class Palette:
     Attributes
     ----------
     policies : tuple of MotionPolicy
-        The verified policies (first-quadrant primitives; instantiation rotates them).
+        The verified policies (first-quadrant primitives; instantiation rotates them):
+        for each primitive the policy sized by bisection, followed by its larger-domain
+        variants (scaled domains, named ``<primitive>[S=<s>G]``), which share its
+        primitive.
     rejected : tuple of (str, VerificationReport)
         Primitives whose policy failed verification, with the failing report.
     duplicates : tuple of (str, str)
@@ -142,6 +145,9 @@ class Palette:
     options: VerificationOptions
     key: str
     primitive_options: PrimitiveSetOptions = field(default_factory=PrimitiveSetOptions)
+    #: Tables other modules derive from this palette alone (e.g. instantiation's),
+    #: computed once and kept with it.
+    _derived: dict[str, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __len__(self) -> int:
         return len(self.policies)
@@ -161,6 +167,11 @@ class Palette:
     def names(self) -> tuple[str, ...]:
         """Policy names, in palette order."""
         return tuple(p.name for p in self.policies)
+
+    @property
+    def base_policies(self) -> tuple[MotionPolicy, ...]:
+        """One policy per primitive: the one sized by bisection (no scaled variants)."""
+        return tuple(p for p in self.policies if not p.label)
 
     @property
     def gains(self) -> ControllerGains:
@@ -192,17 +203,30 @@ class Palette:
             "duplicates": [list(x) for x in self.duplicates],
         }
         arrays: dict[str, np.ndarray] = {}
-        for i, pol in enumerate(self.policies):
+        header["primitives"] = []
+        prim_ids: dict[int, int] = {}
+        for pol in self.policies:
             prim = pol.primitive
+            if id(prim) not in prim_ids:
+                i = prim_ids[id(prim)] = len(header["primitives"])
+                stride = COARSE_STRIDE if prim.num_ticks % COARSE_STRIDE == 0 else 1
+                header["primitives"].append(
+                    {
+                        "name": prim.name,
+                        "kind": prim.kind.value,
+                        "duration": prim.duration,
+                        "dt": prim.dt,
+                        "displacement": prim.displacement.tolist(),
+                        "start_velocity": prim.start_velocity.tolist(),
+                        "end_velocity": prim.end_velocity.tolist(),
+                        "stride": stride,
+                    }
+                )
+                arrays[f"p{i}_states"], arrays[f"p{i}_accelerations"] = prim.coarse(stride)
             header["policies"].append(
                 {
-                    "name": prim.name,
-                    "kind": prim.kind.value,
-                    "duration": prim.duration,
-                    "dt": prim.dt,
-                    "displacement": prim.displacement.tolist(),
-                    "start_velocity": prim.start_velocity.tolist(),
-                    "end_velocity": prim.end_velocity.tolist(),
+                    "primitive": prim_ids[id(prim)],
+                    "label": pol.label,
                     "start_radii": dataclasses.asdict(pol.start_radii),
                     "goal_radii": dataclasses.asdict(pol.goal_radii),
                     "outer_factors": list(pol.outer_factors),
@@ -210,9 +234,6 @@ class Palette:
                     "report": None if pol.report is None else dataclasses.asdict(pol.report),
                 }
             )
-            stride = COARSE_STRIDE if prim.num_ticks % COARSE_STRIDE == 0 else 1
-            header["policies"][-1]["stride"] = stride
-            arrays[f"p{i}_states"], arrays[f"p{i}_accelerations"] = prim.coarse(stride)
         arrays["header"] = np.frombuffer(json.dumps(header).encode(), dtype=np.uint8)
         buf = io.BytesIO()
         np.savez(buf, **arrays)  # type: ignore[arg-type]
@@ -245,10 +266,12 @@ class Palette:
                 friction_compensation=bool(gp["friction_compensation"]),
                 weights=None if gp["weights"] is None else LQRWeights(**gp["weights"]),
             )
-            options = VerificationOptions(**header["options"])
+            opts = dict(header["options"])
+            opts["scale_ladder"] = tuple(opts["scale_ladder"])
+            options = VerificationOptions(**opts)
             primitive_options = PrimitiveSetOptions.from_dict(header["primitive_options"])
-            policies = []
-            for i, meta in enumerate(header["policies"]):
+            primitives = []
+            for i, meta in enumerate(header["primitives"]):
                 prim = SampledPrimitive.from_coarse(
                     arrays[f"p{i}_states"],
                     arrays[f"p{i}_accelerations"],
@@ -262,11 +285,14 @@ class Palette:
                     params=params,
                 )
                 if abs(prim.duration - float(meta["duration"])) > 1e-9:
-                    raise ValueError(f"policy {meta['name']}: samples do not span its duration")
+                    raise ValueError(f"primitive {meta['name']}: samples do not span its duration")
+                primitives.append(prim)
+            policies = []
+            for meta in header["policies"]:
                 rep = meta["report"]
                 policies.append(
                     MotionPolicy(
-                        primitive=prim,
+                        primitive=primitives[int(meta["primitive"])],
                         gains=gains,
                         start_radii=DomainRadii(**meta["start_radii"]),
                         goal_radii=DomainRadii(**meta["goal_radii"]),
@@ -276,6 +302,7 @@ class Palette:
                         ),
                         correlation=float(meta["correlation"]),
                         report=None if rep is None else VerificationReport(**rep),
+                        label=str(meta["label"]),
                     )
                 )
             rejected = tuple((str(n), VerificationReport(**r)) for n, r in header["rejected"])
@@ -501,11 +528,15 @@ def build_palette_for(
 
 def _size_one(
     args: tuple[SampledPrimitive, ControllerGains, VerificationOptions, DomainShape],
-) -> MotionPolicy:
-    from gracenav.policies import size_policy
+) -> tuple[MotionPolicy, ...]:
+    """The policy of one primitive sized by bisection, then its verified larger variants."""
+    from gracenav.policies import scaled_variants, size_policy
 
     prim, gains, options, shape = args
-    return size_policy(prim, gains, options, shape=shape)
+    base = size_policy(prim, gains, options, shape=shape)
+    if base.report is None or not base.report.passed:
+        return (base,)
+    return (base, *scaled_variants(base, options))
 
 
 def _rotation_duplicate(prim: SampledPrimitive, earlier: Sequence[SampledPrimitive]) -> str | None:
@@ -532,7 +563,13 @@ def build_palette(
     processes: int = 2,
     progress: bool = True,
 ) -> Palette:
-    """Size and verify one policy per primitive; keep those that pass.
+    """Size and verify one policy per primitive, then its larger-domain variants; keep
+    those that pass.
+
+    Each primitive's policy is sized by bisection on S/G up to ``options.max_scale``;
+    then the sizes of ``options.scale_ladder`` are verified in turn
+    (:func:`gracenav.policies.scaled_variants`) and every one that passes is kept as a
+    labelled variant sharing the primitive (instantiation places the largest that fits).
 
     Parameters
     ----------
@@ -574,7 +611,7 @@ def build_palette(
     with Progress(len(jobs), "verifying policies", enabled=progress) as bar:
         if processes <= 1:
             for job in jobs:
-                results.append(_size_one(job))
+                results.extend(_size_one(job))
                 bar.update()
         else:
             import multiprocessing as mp
@@ -582,8 +619,8 @@ def build_palette(
 
             ctx = mp.get_context("fork") if "fork" in mp.get_all_start_methods() else None
             with ProcessPoolExecutor(max_workers=processes, mp_context=ctx) as pool:
-                for pol in pool.map(_size_one, jobs):
-                    results.append(pol)
+                for sized in pool.map(_size_one, jobs):
+                    results.extend(sized)
                     bar.update()
     passed = tuple(p for p in results if p.report is not None and p.report.passed)
     rejected = tuple(

@@ -65,7 +65,9 @@ __all__ = [
     "VerificationOptions",
     "VerificationReport",
     "domain_shape",
+    "scaled_variants",
     "size_policy",
+    "variant_label",
     "verify_placements",
     "verify_policy",
 ]
@@ -391,6 +393,11 @@ class VerificationOptions:
     shape_horizon : float
         Time (s) over which :func:`domain_shape` maximises the contraction: the
         shortest trim.
+    scale_ladder : tuple of float
+        Larger start domain sizes S/G, ascending, each > ``max_scale``, at which a
+        policy is verified again after its bisection (:func:`scaled_variants`).
+        Instantiation places the largest verified size whose swept D' fits the map:
+        large domains in open space, the bisected size near walls.
     """
 
     boundary_points: int = 64
@@ -401,8 +408,15 @@ class VerificationOptions:
     max_scale: float = 2.0
     bisection_steps: int = 6
     shape_horizon: float = 1.0
+    scale_ladder: tuple[float, ...] = (3.0, 4.0, 6.0, 8.0)
 
     def __post_init__(self) -> None:
+        ladder = tuple(float(v) for v in self.scale_ladder)
+        object.__setattr__(self, "scale_ladder", ladder)
+        if any(not b > a for a, b in zip((self.max_scale, *ladder), ladder, strict=False)):
+            raise ConfigError(
+                f"scale_ladder must ascend from above max_scale {self.max_scale:g}, got {ladder}"
+            )
         if self.boundary_points < 8:
             raise ConfigError("boundary_points must be >= 8 (the axis extremes)")
         if self.outer_position_factor < 1 or self.outer_velocity_factor < 1:
@@ -519,6 +533,10 @@ class MotionPolicy:
         Position-velocity correlation r of every domain (see :func:`domain_shape`).
     report : VerificationReport or None
         Verification outcome, when verified.
+    label : str
+        Name of a larger-domain variant of the palette's policy for the same primitive
+        (see :func:`scaled_variants`), e.g. ``"rest[S=4G]"``; empty for the policy sized
+        by bisection, which is named after its primitive.
     """
 
     primitive: SampledPrimitive
@@ -528,11 +546,17 @@ class MotionPolicy:
     outer_factors: tuple[float, float] = (1.6, 3.2)
     correlation: float = 0.0
     report: VerificationReport | None = None
+    label: str = ""
 
     @property
     def name(self) -> str:
-        """The primitive's name."""
-        return self.primitive.name
+        """The label of a scaled variant, else the primitive's name."""
+        return self.label or self.primitive.name
+
+    @property
+    def scale(self) -> float:
+        """Start domain size over goal domain size, S/G (>= 1)."""
+        return self.start_radii.position / self.goal_radii.position
 
     @property
     def duration(self) -> float:
@@ -736,6 +760,49 @@ def size_policy(
         else:
             hi = mid
     return best
+
+
+def variant_label(name: str, scale: float) -> str:
+    """Name of the variant of policy ``name`` whose start domain is ``scale`` × G."""
+    return f"{name}[S={scale:g}G]"
+
+
+def scaled_variants(
+    policy: MotionPolicy,
+    options: VerificationOptions | None = None,
+    *,
+    progress: Callable[[], None] | None = None,
+) -> tuple[MotionPolicy, ...]:
+    """Larger-domain variants of a verified policy: the paper's scaled domains (Sec. VI).
+
+    The start domain is enlarged to each size S = s·G of ``options.scale_ladder``
+    above the policy's own, keeping G (so every graceful connection G₁ ⊂ S₂ still
+    holds), and each is verified at both placements like the policy itself. The
+    ladder stops at the first size that fails.
+
+    Returns
+    -------
+    tuple of MotionPolicy
+        The verified variants, ascending in size, labelled by :func:`variant_label`.
+    """
+    options = options if options is not None else VerificationOptions()
+    out: list[MotionPolicy] = []
+    for scale in options.scale_ladder:
+        if scale <= policy.scale * (1 + 1e-12):
+            continue
+        cand = replace(
+            policy,
+            start_radii=policy.goal_radii.scaled(scale),
+            report=None,
+            label=variant_label(policy.primitive.name, scale),
+        )
+        report = verify_placements(cand, options)
+        if progress is not None:
+            progress()
+        if not report.passed:
+            break
+        out.append(replace(cand, report=report))
+    return tuple(out)
 
 
 def rotate_pairs(a: ArrayLike, k: int) -> FloatArray:

@@ -391,6 +391,11 @@ class PrimitiveSetOptions:
         0.50006 m/s on the diagonal).
     rest_duration : float
         Nominal hold time of the rest trim (s).
+    capture_duration : float
+        Hold time of the capture trim (s): a rest trim long enough for the
+        closed loop to bring a robot that moves (after a push, say) from a large
+        start domain into the rest trim's goal domain; see
+        :func:`gracenav.policies.scaled_variants`.
     max_lean : float
         Largest body tilt a maneuver may plan (rad); 4.5°.
     max_speed : float
@@ -411,6 +416,7 @@ class PrimitiveSetOptions:
 
     cruise_speed: float = 0.5
     rest_duration: float = 1.0
+    capture_duration: float = 3.0
     max_lean: float = math.radians(4.5)
     max_speed: float = 0.8
     max_backward_speed: float = 0.02
@@ -422,6 +428,7 @@ class PrimitiveSetOptions:
         for name in (
             "cruise_speed",
             "rest_duration",
+            "capture_duration",
             "max_lean",
             "max_speed",
             "max_backward_speed",
@@ -525,7 +532,15 @@ def _trims(d: float, params: BallbotParams, options: PrimitiveSetOptions) -> lis
             _frozen(vel["rest"]),
             _frozen(vel["rest"]),
             params,
-        )
+        ),
+        TrimPrimitive(
+            "capture",
+            options.capture_duration,
+            _frozen([0.0, 0.0]),
+            _frozen(vel["rest"]),
+            _frozen(vel["rest"]),
+            params,
+        ),
     ]
     for name, disp in (("cruise_x", (d, 0.0)), ("cruise_y", (0.0, d)), ("cruise_xy", (d, d))):
         v = vel[name]
@@ -800,7 +815,8 @@ def primitive_set(
 ) -> PrimitiveSet:
     """The motion primitive set Σ(d) (about 40 primitives).
 
-    Trims: ``rest``, ``cruise_x``, ``cruise_y``, ``cruise_xy``. Maneuvers,
+    Trims: ``rest``, ``capture`` (a longer rest trim for catching a moving robot),
+    ``cruise_x``, ``cruise_y``, ``cruise_xy``. Maneuvers,
     named ``<start>_to_<end>_<i>_<j>`` with displacement (i d, j d): rest to
     rest; start and stop along an axis and the diagonal; 45° and 90° turns in
     both directions; lane changes; U-turns. Each maneuver has the shortest

@@ -178,5 +178,8 @@ def run_show(args: argparse.Namespace) -> int:
 
     pal = load_palette(args.file)
     print(_table(pal))
-    print(f"{len(pal)} policies, d = {pal.d} m, key {pal.key[:12]}")
+    print(
+        f"{len(pal)} policies ({len(pal.base_policies)} primitives and their larger-domain "
+        f"variants), d = {pal.d} m, key {pal.key[:12]}"
+    )
     return 0

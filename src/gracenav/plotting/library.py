@@ -94,6 +94,36 @@ def _draw_domains(ax: Axes, library: PolicyLibrary, rng: np.random.Generator) ->
     return note
 
 
+def _draw_scales(ax: Axes, library: PolicyLibrary) -> None:
+    """Instantiation points coloured by the largest start domain size S/G placed there."""
+    types = library.types
+    t = library.type_index
+    scale = types.start_radii[t, 0] / types.goal_radii[t, 0]
+    point = library.point_index
+    order = np.lexsort((-scale, point))
+    first = np.ones(order.size, dtype=bool)
+    first[1:] = point[order][1:] != point[order][:-1]
+    rows = order[first]
+    _draw_map(ax, library)
+    levels = np.unique(np.round(scale, 6))
+    if rows.size:
+        sc = ax.scatter(
+            library.start_xy[rows, 0],
+            library.start_xy[rows, 1],
+            c=scale[rows],
+            cmap="plasma",
+            vmin=float(levels[0]),
+            vmax=float(max(levels[-1], levels[0] + 1e-9)),
+            s=12,
+            zorder=2,
+        )
+        ax.figure.colorbar(sc, ax=ax, shrink=0.8, label="largest start domain placed (S/G)")
+    ax.set_title(
+        "domain scale by instantiation point (sizes: " + ", ".join(f"{v:g}" for v in levels) + ")",
+        fontsize=9,
+    )
+
+
 def _coverage_grid(
     library: PolicyLibrary, rng: np.random.Generator
 ) -> tuple[np.ndarray, tuple[float, float, float, float]]:
@@ -138,7 +168,9 @@ def plot_library(
     second panel shows, for each cell of a grid over the map, the fraction of sampled
     position states (positions in the cell with clearance >= the footprint radius,
     velocities uniform in [−v_max, v_max]²) that lie in at least one start domain; cells
-    outside the sampled state space are blank, uncovered regions are dark.
+    outside the sampled state space are blank, uncovered regions are dark; and a third
+    panel the domain scale: at each instantiation point, the largest start domain size
+    S/G placed there (scaled domains: large in open space, small near obstacles).
 
     Parameters
     ----------
@@ -161,7 +193,7 @@ def plot_library(
     import matplotlib.pyplot as plt
 
     rng = np.random.default_rng(seed)
-    ncols = 2 if coverage else 1
+    ncols = 3 if coverage else 1
     fig, axes_any = plt.subplots(
         1, ncols, figsize=(6.5 * ncols, 6.0), constrained_layout=True, squeeze=False
     )
@@ -193,6 +225,7 @@ def plot_library(
             f"(|ẋ|, |ẏ| <= {max_trim_speed(library.palette):.2g} m/s)",
             fontsize=9,
         )
+        _draw_scales(axes[2], library)
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=130)
