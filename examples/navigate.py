@@ -16,7 +16,7 @@ from gracenav.world import load_map
 
 
 def main() -> None:
-    palette = load_palette()  # 39 verified motion policies
+    palette = load_palette()  # verified motion policies (the shipped palette)
     world = load_map(
         {
             "bounds": [[-1, -1], [3.5, 3]],
