@@ -71,7 +71,7 @@ def _rows(
 ) -> list[list[str]]:
     csr = graph.csr("time")
     csc = graph.csc("time")  # built already (see _graph)
-    reverse = csc.T.tocsr(copy=True)  # a separate pre-transposed CSR for the peer row
+    reverse = csc.T  # the pre-transposed CSR plan_tree searches, made once for the peer row
     times: dict[str, list[float]] = {"new": [], "old": [], "scipy": [], "rx": []}
     reach = []
     methods: list[tuple[str, Callable[[int], Any]]] = [
