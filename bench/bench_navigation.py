@@ -35,7 +35,7 @@ def main() -> None:
     free = load_map({"bounds": [[0.0, 0.0], [3.5, 3.5]], "obstacles": []})
     lib = build_library(pal, free, max_halvings=0)
     graph = build_graph(lib)
-    adj = graph.csr("time")
+    adj = graph.csc("time")  # the reversed graph, kept with the graph
     goals = lib.trim_indices()
     rng = np.random.default_rng(0)
     times = []

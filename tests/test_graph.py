@@ -222,6 +222,36 @@ def test_csr_shapes_and_costs() -> None:
     assert "PreparesGraph(" in repr(graph)
 
 
+def test_csc_is_the_adjacency_by_columns_built_once() -> None:
+    lib = build_library(
+        mixed_palette(),
+        free_map(3.0, 3.0),
+        footprint_radius=0.05,
+        max_halvings=1,
+        coverage_samples=100,
+    )
+    graph = build_graph(lib)
+    for cost in ("distance", "time"):
+        got, want = graph.csc(cost), graph.csr(cost).tocsc()  # type: ignore[arg-type]
+        assert got.format == "csc" and got.shape == want.shape and got.has_sorted_indices
+        assert got.indices.dtype == got.indptr.dtype == np.int32
+        np.testing.assert_array_equal(got.indptr, want.indptr)
+        np.testing.assert_array_equal(got.indices, want.indices)
+        np.testing.assert_array_equal(got.data, want.data)  # explicit zeros included
+        assert graph.csc(cost) is got  # cached
+    # Both costs share one index structure; the transpose is the reversed graph, uncopied.
+    t, d = graph.csc("time"), graph.csc("distance")
+    assert np.shares_memory(t.indices, d.indices) and np.shares_memory(t.indptr, d.indptr)
+    assert np.any(d.data == 0.0) and not np.any(t.data == 0.0)
+    rev = t.T
+    assert rev.format == "csr" and np.shares_memory(rev.indices, t.indices)
+    src, dst = graph.edges()
+    reversed_edges = set(zip(*np.nonzero(rev.toarray()), strict=True))
+    assert {(int(b), int(a)) for a, b in zip(src, dst, strict=True)} == reversed_edges
+    with pytest.raises(ConfigError, match="cost"):
+        graph.csc("energy")  # type: ignore[arg-type]
+
+
 def test_bad_inputs() -> None:
     lib = build_library(
         mixed_palette(),
@@ -246,3 +276,4 @@ def test_empty_library_gives_an_empty_graph() -> None:
     graph = build_graph(lib)
     assert graph.num_nodes == 0 and graph.num_edges == 0
     assert graph.csr("distance").shape == (0, 0)
+    assert graph.csc("distance").shape == (0, 0) and graph.csc("time").nnz == 0

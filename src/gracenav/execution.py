@@ -349,7 +349,7 @@ class HybridController:
         self.palette = library.palette
         self.gains = self.palette.gains
         self.params = params if params is not None else self.palette.params
-        self._adjacency = graph.csr(self.criterion.value)
+        self._adjacency = graph.csc(self.criterion.value)
         self._trees: dict[int, PolicyTree] = {}
         self.tree_seconds: list[float] = []
 

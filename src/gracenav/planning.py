@@ -4,6 +4,10 @@ Dijkstra's algorithm runs from the goal policy on the *reversed* gracefully
 prepares graph, so one search gives every library policy its optimal next
 policy toward the goal and its cost-to-go: no replanning is needed when a
 disturbance moves the robot into another policy's domain.
+
+The reversed graph in CSR form is the adjacency matrix in CSC form, reinterpreted:
+pass :meth:`gracenav.graph.PreparesGraph.csc` (built once per graph) and a tree costs
+only the search; a CSR adjacency is transposed on every call, O(N + E).
 """
 
 from __future__ import annotations
@@ -78,7 +82,7 @@ class PolicyTree:
 
 
 def plan_tree(
-    adjacency: scipy.sparse.csr_matrix | scipy.sparse.csr_array,
+    adjacency: scipy.sparse.sparray | scipy.sparse.spmatrix,
     goal: int,
     *,
     criterion: CostCriterion | str = CostCriterion.TIME,
@@ -87,9 +91,12 @@ def plan_tree(
 
     Parameters
     ----------
-    adjacency : scipy.sparse CSR, shape (N, N)
+    adjacency : scipy.sparse matrix or array, shape (N, N)
         Entry (i, j) is the cost of executing policy i when i gracefully
-        prepares j (see :meth:`gracenav.graph.PreparesGraph.csr`).
+        prepares j; stored entries are edges, explicit zeros included. In CSC form
+        (:meth:`gracenav.graph.PreparesGraph.csc`) its transpose is the reversed graph
+        at no cost; any other form (:meth:`gracenav.graph.PreparesGraph.csr`) is
+        transposed and converted on every call.
     goal : int
         Library index of the goal policy.
     criterion : CostCriterion or str
@@ -105,7 +112,10 @@ def plan_tree(
         raise ConfigError(f"adjacency must be square, got {adjacency.shape}")
     if not 0 <= goal < n:
         raise PlanningError(f"goal policy index {goal} is outside the library (0..{n - 1})")
-    reverse = scipy.sparse.csr_matrix(adjacency.T)
+    if adjacency.format == "csc":
+        reverse = adjacency.T  # CSR over the same arrays: no copy
+    else:
+        reverse = adjacency.T.tocsr()
     dist, pred = scipy.sparse.csgraph.dijkstra(
         reverse, directed=True, indices=int(goal), return_predecessors=True
     )

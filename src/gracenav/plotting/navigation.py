@@ -10,6 +10,8 @@ import numpy as np
 
 __all__ = ["animate_episode", "draw_map", "plot_lean", "plot_paths"]
 
+_GIF_COLOURS = 64  # palette of the animation: white, black, greys and a few line colours
+
 
 def _plt() -> Any:
     import matplotlib
@@ -133,12 +135,39 @@ def plot_lean(result: Any, path: str | Path) -> Path:
 
 def animate_episode(result: Any, run: int, path: str | Path, *, fps: int = 10) -> Path:
     """A GIF of run ``run``: the ball, the body's lean, the current policy's outer domain
-    and the path so far, at ``fps`` frames per simulated second (played in real time)."""
+    and the path so far, at ``fps`` frames per simulated second (played in real time).
+
+    The map, obstacles and goals are drawn once; each frame restores that background
+    and draws only the moving artists (blitting). The title (time and policy) is set by
+    Pillow in the title's font, size and place: a matplotlib text costs more to draw
+    than the rest of a frame. Frames share one 64-colour palette, taken from three
+    frames (no pixel moves by more than a few levels of 255), and Pillow stores each
+    frame as the rectangle that changed since the previous one, its palette reduced to
+    the colours it uses (``optimize``).
+
+    Parameters
+    ----------
+    result : ScenarioResult
+        As returned by :func:`gracenav.scenarios.run_scenario`.
+    run : int
+        Index of the episode in ``result.episodes``.
+    path : str or Path
+        Output file (GIF).
+    fps : int
+        Frames per simulated second; each frame lasts 1/fps s.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     plt = _plt()
-    from matplotlib.animation import FuncAnimation, PillowWriter
+    from matplotlib.font_manager import findfont
+    from PIL import Image, ImageDraw, ImageFont
 
     ep = result.episodes[run]
     p = ep.position_state
+    lean = ep.lean
     lib = result.library
     fig, ax = plt.subplots(figsize=(5, 5), constrained_layout=True)
     draw_map(ax, result.world_map)
@@ -148,41 +177,74 @@ def animate_episode(result: Any, run: int, path: str | Path, *, fps: int = 10) -
     (body,) = ax.plot([], [], "-", color="tab:orange", lw=4, solid_capstyle="round")
     (ball,) = ax.plot([], [], "o", color="tab:blue", ms=8)
     (dom,) = ax.plot([], [], "-", color="tab:orange", lw=0.8, alpha=0.7)
-    title = ax.set_title("")
+    title = ax.set_title("t = 0.0 s")  # reserves the title's place in the layout
+    moving = (trail, body, ball, dom)
+    for a in (*moving, title):
+        a.set_animated(True)  # left out of the full draw: drawn per frame below
     step = max(1, round(1.0 / (fps * (ep.time[1] - ep.time[0]))))
-    frames = list(range(0, ep.time.size, step))
+    frames = range(0, ep.time.size, step)
     lean_scale = 0.6 / np.deg2rad(5.0)  # 5° of lean drawn as 0.6 m
     ang = np.linspace(0, 2 * np.pi, 50)
-    cache: dict[int, Any] = {}
+    policies: dict[int, Any] = {}
 
-    def update(i: int) -> tuple[Any, ...]:
+    def update(i: int) -> str:
+        """Set the moving artists to tick ``i``; return the title."""
         trail.set_data(p[: i + 1, 0], p[: i + 1, 1])
         ball.set_data([p[i, 0]], [p[i, 1]])
-        tip = p[i, :2] + lean_scale * ep.lean[i]
+        tip = p[i, :2] + lean_scale * lean[i]
         body.set_data([p[i, 0], tip[0]], [p[i, 1], tip[1]])
         pid = int(ep.policy[i])
-        if pid >= 0:
-            pol = cache.setdefault(pid, lib.policy(pid))
-            start = (
-                next(
-                    e.time
-                    for e in reversed(ep.events)
-                    if e.to_policy == pid and e.time <= ep.time[i] + 1e-9
-                )
-                if ep.events
-                else 0.0
-            )
-            d = pol.outer_domain(float(ep.time[i] - start))
-            rad = float(np.sqrt(np.linalg.inv(d.xy_projection())[0, 0]))
-            dom.set_data(d.center[0] + rad * np.cos(ang), d.center[1] + rad * np.sin(ang))
-            title.set_text(f"t = {ep.time[i]:5.1f} s  {pol.name}")
-        else:
+        if pid < 0:
             dom.set_data([], [])
-            title.set_text(f"t = {ep.time[i]:5.1f} s  balancing")
-        return trail, body, ball, dom, title
+            return f"t = {ep.time[i]:5.1f} s  balancing"
+        pol = policies.setdefault(pid, lib.policy(pid))
+        start = next(
+            (
+                e.time
+                for e in reversed(ep.events)
+                if e.to_policy == pid and e.time <= ep.time[i] + 1e-9
+            ),
+            0.0,
+        )
+        d = pol.outer_domain(float(ep.time[i] - start))
+        rad = float(np.sqrt(np.linalg.inv(d.xy_projection())[0, 0]))
+        dom.set_data(d.center[0] + rad * np.cos(ang), d.center[1] + rad * np.sin(ang))
+        return f"t = {ep.time[i]:5.1f} s  {pol.name}"
 
-    anim = FuncAnimation(fig, update, frames=frames, blit=False)
-    out = Path(path)
-    anim.save(str(out), writer=PillowWriter(fps=fps))
+    canvas = fig.canvas
+    canvas.draw()  # lays the figure out once and renders the static background
+    fig.set_layout_engine("none")  # keep that layout: nothing is drawn in full again
+    background = canvas.copy_from_bbox(fig.bbox)
+    width, height = canvas.get_width_height()
+    props = title.get_fontproperties()
+    font = ImageFont.truetype(findfont(props), props.get_size_in_points() * fig.dpi / 72.0)
+    x, y = title.get_transform().transform(title.get_position())
+    title_at = (float(x), float(height - y))  # middle of the baseline, from the top
+
+    def render(i: int) -> Any:
+        text = update(i)
+        canvas.restore_region(background)
+        for a in moving:
+            ax.draw_artist(a)
+        rgba = Image.frombuffer("RGBA", (width, height), canvas.buffer_rgba(), "raw", "RGBA", 0, 1)
+        rgb = rgba.convert("RGB")
+        ImageDraw.Draw(rgb).text(title_at, text, fill=title.get_color(), font=font, anchor="ms")
+        return rgb
+
+    samples = [render(i) for i in (frames[0], frames[len(frames) // 2], frames[-1])]
+    strip = Image.new("RGB", (width, 3 * height))
+    for k, im in enumerate(samples):
+        strip.paste(im, (0, k * height))
+    palette = strip.quantize(_GIF_COLOURS, method=Image.Quantize.FASTOCTREE)
+    images = [render(i).quantize(palette=palette, dither=Image.Dither.NONE) for i in frames]
     plt.close(fig)
+    out = Path(path)
+    images[0].save(
+        out,
+        save_all=True,
+        append_images=images[1:],
+        duration=round(1000 / fps),
+        loop=0,
+        optimize=True,
+    )
     return out

@@ -1,0 +1,168 @@
+"""Peak memory and time of the library and graph on 100 m × 100 m maps: a baseline.
+
+Two maps at 5 cm resolution, one pass at spacing d (``max_halvings=0``):
+
+* ``office``: ``maps.office_map(100.0, 0.05, seed=0)``: corridors, rooms, furniture;
+* ``hall``: an open 100 m × 100 m hall, walls only (the most policies per area).
+
+Each map runs in its own subprocess so that its peak resident memory
+(``resource.getrusage(RUSAGE_SELF).ru_maxrss``) is its own. The child reports the peak
+after each stage (map and clearance field, library, graph, reversed graph and one tree)
+and the wall time of each; the parent prints a table. A child that runs out of the
+address-space limit (``--max-gib``) or the time limit is reported, not fatal.
+
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python bench/bench_scale.py [--only office]
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import json
+import os
+import resource
+import subprocess
+import sys
+import time
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+CASES = ("office", "hall")
+SIZE = 100.0  # m
+RESOLUTION = 0.05  # m
+
+
+def _rss_mib() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # Linux: KiB
+
+
+def child(case: str) -> dict[str, float | int | str]:
+    """Build map, library, graph, reversed graph and one tree; peak RSS after each.
+
+    The results so far are printed (one JSON line) after every stage, so a stage that
+    fails still leaves the earlier ones to the parent."""
+    import numpy as np
+    from bench_library import get_palette
+
+    from gracenav.graph import build_graph
+    from gracenav.library import build_library
+    from gracenav.maps import load_map, office_map
+    from gracenav.planning import plan_tree
+
+    out: dict[str, float | int | str] = {"case": case, "rss_start_mib": _rss_mib()}
+    palette, note = get_palette()
+    out["palette"] = note
+    t0 = time.perf_counter()
+    if case == "office":
+        wmap = office_map(SIZE, RESOLUTION, seed=0)
+    else:
+        wmap = load_map(
+            {"bounds": [[0.0, 0.0], [SIZE, SIZE]], "obstacles": [], "resolution": RESOLUTION}
+        )
+    _ = wmap.clearance_grid
+    out["map_s"] = time.perf_counter() - t0
+    out["rss_map_mib"] = _rss_mib()
+    print(json.dumps(out), flush=True)
+    t0 = time.perf_counter()
+    lib = build_library(palette, wmap, max_halvings=0)
+    out["library_s"] = time.perf_counter() - t0
+    out["rss_library_mib"] = _rss_mib()
+    out["policies"] = len(lib)
+    print(json.dumps(out), flush=True)
+    t0 = time.perf_counter()
+    graph = build_graph(lib)
+    out["graph_s"] = time.perf_counter() - t0
+    out["rss_graph_mib"] = _rss_mib()
+    out["edges"] = graph.num_edges
+    print(json.dumps(out), flush=True)
+    t0 = time.perf_counter()
+    csc = graph.csc("time")
+    out["csc_s"] = time.perf_counter() - t0
+    trims = lib.trim_indices()
+    goal = int(trims[np.argmin(np.linalg.norm(lib.start_xy[trims] - SIZE / 2, axis=1))])
+    t0 = time.perf_counter()
+    tree = plan_tree(csc, goal)
+    out["tree_s"] = time.perf_counter() - t0
+    out["tree_size"] = int(np.isfinite(tree.cost_to_go).sum())
+    out["rss_tree_mib"] = _rss_mib()
+    return out
+
+
+def run_child(case: str, max_gib: float, timeout: float) -> dict[str, object]:
+    here = os.path.dirname(os.path.abspath(__file__))
+    limit = int(max_gib * 2**30)
+
+    def limit_memory() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+
+    t0 = time.perf_counter()
+    try:
+        proc = subprocess.run(
+            [sys.executable, os.path.join(here, "bench_scale.py"), "--child", case],
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            preexec_fn=limit_memory,
+            check=False,
+        )
+    except subprocess.TimeoutExpired:
+        return {"case": case, "error": f"no result within {timeout:g} s"}
+    wall = time.perf_counter() - t0
+    lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("{")]
+    res: dict[str, object] = json.loads(lines[-1]) if lines else {"case": case}
+    if proc.returncode != 0:
+        err = (proc.stderr.strip().splitlines() or ["?"])[-1]
+        res["error"] = f"exit {proc.returncode} after {wall:.0f} s: {err}"
+    return res
+
+
+def _cell(r: dict[str, object], key: str, width: int, fmt: str, scale: float = 1.0) -> str:
+    """``r[key]`` (times ``scale``) formatted right-aligned, or "-" if the stage failed."""
+    v = r.get(key)
+    return f"{'-':>{width}}" if v is None else f"{float(v) * scale:>{width}{fmt}}"  # type: ignore[arg-type]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--only", choices=CASES, help="run one map only")
+    ap.add_argument("--max-gib", type=float, default=8.0, help="address-space limit per map")
+    ap.add_argument("--timeout", type=float, default=900.0, help="time limit per map (s)")
+    ap.add_argument("--child", choices=CASES, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.child:
+        print(json.dumps(child(args.child)))
+        return
+    results = [run_child(c, args.max_gib, args.timeout) for c in CASES if args.only in (None, c)]
+    notes = {str(r["palette"]) for r in results if "palette" in r}
+    for n in notes:
+        print(n)
+    print(f"{SIZE:g} m x {SIZE:g} m maps, {RESOLUTION:g} m cells, one pass at spacing d")
+    head = (
+        f"{'map':<7} {'policies':>9} {'edges':>11} {'map s':>6} {'library s':>9} "
+        f"{'graph s':>7} {'lib+graph s':>11} {'csc s':>6} {'tree ms':>7} {'tree size':>9} "
+        f"{'peak RSS MiB: map':>17} {'library':>7} {'graph':>7} {'+csc,tree':>9}"
+    )
+    print(head)
+    for r in results:
+        cell = functools.partial(_cell, r)
+
+        total = (
+            float(r["library_s"]) + float(r["graph_s"])  # type: ignore[arg-type]
+            if "graph_s" in r
+            else None
+        )
+        print(
+            f"{r['case']!s:<7} {cell('policies', 9, '.0f')} {cell('edges', 11, '.0f')} "
+            f"{cell('map_s', 6, '.1f')} {cell('library_s', 9, '.1f')} {cell('graph_s', 7, '.1f')} "
+            f"{'-' if total is None else f'{total:.1f}':>11} {cell('csc_s', 6, '.2f')} "
+            f"{cell('tree_s', 7, '.1f', 1e3)} {cell('tree_size', 9, '.0f')} "
+            f"{cell('rss_map_mib', 17, '.0f')} {cell('rss_library_mib', 7, '.0f')} "
+            f"{cell('rss_graph_mib', 7, '.0f')} {cell('rss_tree_mib', 9, '.0f')}"
+        )
+        if "error" in r:
+            print(f"  {r['case']} failed: {r['error']}")
+    print("peak RSS is ru_maxrss of the map's own process, cumulative over the stages")
+
+
+if __name__ == "__main__":
+    main()
