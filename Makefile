@@ -42,9 +42,12 @@ typecheck: setup-test
 test: lint typecheck
 	$(PY) -m pytest -q
 
+# bench_scale.py (100 m maps, needs > 8 GiB for the open hall) runs on its own.
 bench: setup-test
 	$(PY) -m pip install --quiet -e ".[bench]"
-	for b in bench/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
+	for b in bench/bench_*.py; do \
+	  case $$b in *bench_scale.py) continue;; esac; \
+	  echo "== $$b"; $(PY) $$b || exit 1; done
 
 # Re-resolve every dependency (with all extras) to the newest versions the package
 # index serves, in a throwaway environment, and write them to requirements/lock.txt.

@@ -40,8 +40,8 @@ from scipy.sparse import csgraph
 
 from gracenav.graph import PreparesGraph, build_graph
 from gracenav.library import build_library
-from gracenav.maps import WorldMap, load_map, office_map
 from gracenav.planning import plan_tree
+from gracenav.world import WorldMap, load_map, office_map
 
 try:
     import rustworkx

@@ -46,8 +46,8 @@ def child(case: str) -> dict[str, float | int | str]:
 
     from gracenav.graph import build_graph
     from gracenav.library import build_library
-    from gracenav.maps import load_map, office_map
     from gracenav.planning import plan_tree
+    from gracenav.world import load_map, office_map
 
     out: dict[str, float | int | str] = {"case": case, "rss_start_mib": _rss_mib()}
     palette, note = get_palette()

@@ -16,9 +16,9 @@ from synthetic import palette, policy, primitive
 from gracenav import PlanningError
 from gracenav.graph import build_graph
 from gracenav.library import build_library
-from gracenav.maps import load_map
 from gracenav.planning import CostCriterion, PolicyTree, plan_tree
 from gracenav.policies import PrimitiveKind
+from gracenav.world import load_map
 
 X, Y, Z = (0.5, 0.0), (0.0, 0.5), (0.0, 0.0)
 

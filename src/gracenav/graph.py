@@ -229,21 +229,27 @@ def _type_compatibility(library: PolicyLibrary, atol: float) -> tuple[BoolArray,
     types whose end is off the lattice have no successor."""
     types = library.types
     s = library.spacing
-    end8, start8 = types.boundary("end"), types.boundary("start")
+    # Each test runs on the distinct rows only (a policy's larger-domain variants share
+    # its boundary states and all policies share G), then is expanded to type pairs.
+    end8, end_of = np.unique(types.boundary("end"), axis=0, return_inverse=True)
+    start8, start_of = np.unique(types.boundary("start"), axis=0, return_inverse=True)
     states_ok = np.all(np.abs(end8[:, None, :] - start8[None, :, :]) <= atol, axis=2)
+    states_ok = states_ok[end_of.reshape(-1)][:, start_of.reshape(-1)]
     gains = _gains_classes(library)[types.palette_index]
     gains_ok = gains[:, None] == gains[None, :]
     # (i) G1 ⊂ S2 for concentric domains of shape M ⊗ I₂: M_S2 ≼ M_G1 (for a shared
     # domain shape this is DomainRadii.contains: every extent of G1 at most S2's).
-    diff = types.goal_shape[:, None] - types.start_shape[None, :]
+    goal_m, goal_of = np.unique(types.goal_shape, axis=0, return_inverse=True)
+    start_m, start_m_of = np.unique(types.start_shape, axis=0, return_inverse=True)
+    diff = goal_m[:, None] - start_m[None, :]
     tr = diff[..., 0, 0] + diff[..., 1, 1]
     det = diff[..., 0, 0] * diff[..., 1, 1] - diff[..., 0, 1] * diff[..., 1, 0]
     lam_min = 0.5 * tr - np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0))
     scale = np.maximum(
-        np.abs(types.goal_shape).max(axis=(1, 2))[:, None],
-        np.abs(types.start_shape).max(axis=(1, 2))[None, :],
+        np.abs(goal_m).max(axis=(1, 2))[:, None],
+        np.abs(start_m).max(axis=(1, 2))[None, :],
     )
-    domain_ok = lam_min >= -1e-9 * scale
+    domain_ok = (lam_min >= -1e-9 * scale)[goal_of.reshape(-1)][:, start_m_of.reshape(-1)]
     cells = np.rint(types.end_offset / s)
     on_lattice = np.all(np.abs(types.end_offset - cells * s) <= atol, axis=1)
     compat = states_ok & gains_ok & domain_ok & on_lattice[:, None]
