@@ -186,3 +186,10 @@ def test_bad_scenario_files(tmp_path, capsys) -> None:
     )
     assert main(["run", str(missing_map), "--out", str(tmp_path / "o")]) == 2
     assert "nowhere.yaml" in capsys.readouterr().err
+
+
+def test_goal_policy_is_the_shortest_of_equally_near_trims(controller: HybridController) -> None:
+    """The rest trim (1 s) and the capture trim (3 s) end at the same goal state: a task
+    ends on the rest trim, not on a 2 s longer hold."""
+    goal = controller.library.policy(controller.goal_policy([2.0, 2.0, 0.0, 0.0]))
+    assert goal.policy.primitive.name == "rest" and goal.duration == pytest.approx(1.0)

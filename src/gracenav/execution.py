@@ -355,7 +355,8 @@ class HybridController:
 
     # -- planning ------------------------------------------------------------------
     def goal_policy(self, goal: ArrayLike) -> int:
-        """The closest trim policy (Euclidean, to its G's centre) whose G contains ``goal``.
+        """The closest trim policy (Euclidean, to its G's centre; the shortest of equally
+        close ones) whose G contains ``goal``.
 
         Raises
         ------
@@ -380,7 +381,11 @@ class HybridController:
         trims = self.library.trim_indices()
         ends = self.library.end_state[trims]
         candidates = []
-        for i in trims[np.argsort(np.linalg.norm(ends - g, axis=1))][:64]:
+        # Nearest first; among equally near trims (a rest trim and the longer capture
+        # trim end at the same state) the shortest, so a task does not end on a hold
+        # longer than it needs.
+        order = np.lexsort((self.library.durations[trims], np.linalg.norm(ends - g, axis=1)))
+        for i in trims[order][:64]:
             if self.library.policy(int(i)).goal_domain.contains(g):
                 candidates.append(int(i))
                 break
