@@ -143,6 +143,7 @@ def closed_loop(
     domain_center,
     domain_shape,
     stop_on_exit,
+    fall_lean,
     record,
     states_out,
     inputs_out,
@@ -158,10 +159,12 @@ def closed_loop(
     [active, v_x, v_y]: while active a horizontal damper, tether_gains[0]
     (N s/m), drags the body COM toward the velocity (v_x, v_y); domain_center
     (T+1, 4) and domain_shape (T+1, 4, 4) the monitored outer domain D'(t) (pass
-    zero-size arrays for none); states_out (B, T+1, 8) and inputs_out (B, T+1, 2)
-    when ``record``; summary_out (B, 6): [last tick reached, max |lean| (rad),
-    max |τ| commanded (N m), max D'(t) value, saturated ticks, exit tick or -1];
-    final_out (B, 8) the state at the last tick reached.
+    zero-size arrays for none); a run stops at the first tick where |φ_x| or |φ_y|
+    exceeds ``fall_lean`` (rad) or is not finite (a fall); states_out (B, T+1, 8)
+    and inputs_out (B, T+1, 2) when ``record``; summary_out (B, 7): [last tick
+    reached, max |lean| (rad), max |τ| commanded (N m), max D'(t) value, saturated
+    ticks, exit tick or -1, fall tick or -1]; final_out (B, 8) the state at the last
+    tick reached.
     """
     nb = x0.shape[0]
     nt = x_ref.shape[0] - 1
@@ -195,6 +198,7 @@ def closed_loop(
         max_dom = 0.0
         saturated = 0
         exit_tick = -1
+        fall_tick = -1
         last = nt
         for n in range(nt + 1):
             if use_jump:
@@ -231,6 +235,8 @@ def closed_loop(
                 a = abs(x[2 + i])
                 if a > max_lean:
                     max_lean = a
+                if not a <= fall_lean and fall_tick < 0:
+                    fall_tick = n
             if monitor:
                 for i in range(2):
                     pv[i] = r * (x[i] + x[2 + i]) - domain_center[n, i]
@@ -248,7 +254,7 @@ def closed_loop(
                     states_out[b, n, i] = x[i]
                 inputs_out[b, n, 0] = tau[0]
                 inputs_out[b, n, 1] = tau[1]
-            if (exit_tick >= 0 and stop_on_exit) or n == nt:
+            if (exit_tick >= 0 and stop_on_exit) or fall_tick >= 0 or n == nt:
                 last = n
                 break
             if use_force:
@@ -277,5 +283,6 @@ def closed_loop(
         summary_out[b, 3] = max_dom
         summary_out[b, 4] = saturated
         summary_out[b, 5] = exit_tick
+        summary_out[b, 6] = fall_tick
         for i in range(8):
             final_out[b, i] = x[i]
