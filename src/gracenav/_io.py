@@ -301,7 +301,7 @@ class OutputDir:
             try:
                 fd = os.open(self._lock_path, os.O_RDWR | os.O_CREAT, 0o644)
             except OSError as exc:
-                raise self._fail("create a lock file beside it", exc) from None
+                raise self._fail(f"write in {self.path.parent}", exc) from None
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
@@ -346,7 +346,7 @@ class OutputDir:
             os.chmod(self.staging, 0o777 & ~umask)
         except OSError as exc:
             self._unlock()
-            raise self._fail("write beside it", exc) from None
+            raise self._fail(f"write in {self.path.parent}", exc) from None
         except BaseException:
             self._unlock()
             raise
