@@ -345,12 +345,21 @@ class OutputDir:
             os.umask(umask)
             os.chmod(self.staging, 0o777 & ~umask)
         except OSError as exc:
-            self._unlock()
+            self._cleanup()
             raise self._fail(f"write in {self.path.parent}", exc) from None
         except BaseException:
-            self._unlock()
+            self._cleanup()
             raise
         return self
+
+    def _cleanup(self) -> None:
+        import shutil
+
+        try:
+            if self.staging != Path() and self.staging.exists():
+                shutil.rmtree(self.staging, ignore_errors=True)
+        finally:
+            self._unlock()
 
     def _publish(self) -> None:
         import shutil
@@ -370,8 +379,6 @@ class OutputDir:
             shutil.rmtree(old, ignore_errors=True)
 
     def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
-        import shutil
-
         try:
             if exc_type is None:
                 try:
@@ -379,6 +386,4 @@ class OutputDir:
                 except OSError as err:
                     raise self._fail("replace it with the new results", err) from None
         finally:
-            if self.staging != Path() and self.staging.exists():
-                shutil.rmtree(self.staging, ignore_errors=True)
-            self._unlock()
+            self._cleanup()

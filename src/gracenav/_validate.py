@@ -35,8 +35,10 @@ def show(value: Any, limit: int = 40) -> str:
     if isinstance(value, float):
         return repr(value)
     if isinstance(value, int):
-        text = str(value) if abs(value) < 10**15 else f"{float(value):.3g}"
-        return text
+        if abs(value) < 10**15:
+            return str(value)
+        sign = "-" if value < 0 else ""
+        return f"{sign}~1e{int(abs(value).bit_length() * math.log10(2))}"  # any size
     if isinstance(value, (list, tuple)):
         items = ", ".join(show(v, limit) for v in value[:5])
         text = f"[{items}{', ...' if len(value) > 5 else ''}]"
@@ -123,7 +125,7 @@ class Fields:
 
     def check_keys(self, allowed: Sequence[str] | set[str]) -> None:
         """Refuse keys not in ``allowed``."""
-        unknown = sorted(str(k) for k in self.data if k not in allowed)
+        unknown = sorted(show(k, 20).strip("'") for k in self.data if k not in allowed)
         if unknown:
             shown = ", ".join(repr(self.path(k)) for k in unknown[:5])
             raise self.fail(

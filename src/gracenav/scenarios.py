@@ -151,10 +151,10 @@ def _map_cells(mp: Fields) -> None:
         h = float(y1) - float(y0)
     except (TypeError, ValueError, OverflowError):
         return  # malformed: the map loader says how
-    if res is None or res <= 0 or not (math.isfinite(w) and math.isfinite(h)):
+    if res is None or res <= 0:
         return
-    cells = math.ceil(max(w, 0.0) / res) * math.ceil(max(h, 0.0) / res)
-    if cells > MAX_MAP_CELLS:
+    cells = (max(w, 0.0) / res) * (max(h, 0.0) / res)  # inf for absurd bounds
+    if not cells <= MAX_MAP_CELLS:
         raise mp.fail(
             f"'map' of {w:g} m × {h:g} m at resolution {res:g} m has {cells:.3g} cells, "
             f"more than the limit of {MAX_MAP_CELLS:.0e}; use a coarser 'map.resolution' "

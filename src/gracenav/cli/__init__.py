@@ -24,7 +24,7 @@ class _Parser(argparse.ArgumentParser):
     """Argument parser whose errors are a single line."""
 
     def error(self, message: str) -> NoReturn:
-        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
+        self.exit(2, f"gracenav: error: {message} (see {self.prog} --help)\n")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -94,6 +94,8 @@ def check_figure_path(path: Path, flag: str = "--out") -> Path:
     ------
     OutputError
     """
+    if path.is_dir():
+        raise OutputError(f"{flag} {path} is a directory; give a file name such as fig.png")
     suffix = path.suffix.lower().lstrip(".")
     formats = supported_figure_formats()
     if suffix not in formats:
@@ -102,8 +104,6 @@ def check_figure_path(path: Path, flag: str = "--out") -> Path:
             f"{flag} {path}: {got} is not a figure format; use one of "
             f"{', '.join('.' + f for f in sorted(formats))}"
         )
-    if path.is_dir():
-        raise OutputError(f"{flag} {path} is a directory; give a file name such as fig.png")
     for parent in path.absolute().parents:
         if parent.exists():
             if not parent.is_dir():
