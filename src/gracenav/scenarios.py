@@ -38,7 +38,7 @@ from typing import Any, Literal
 import numpy as np
 
 from gracenav._io import atomic_write_text, load_document
-from gracenav._validate import Fields, as_number, require_mapping
+from gracenav._validate import Fields, require_mapping
 from gracenav.errors import ConfigError
 from gracenav.params import BallbotParams
 from gracenav.simulate import Disturbance, Drag, Push, SimulationOptions
@@ -124,8 +124,6 @@ MAX_INSTANTIATIONS = 2_000_000
 """Budget of policy instantiations tried by the library over all halvings (lattice
 points × orientations × palette policies): the 50 m × 50 m office at one pass tries
 1.56 M (≈2 s, ≈330 MiB)."""
-MAX_MAP_CELLS = 10_000_000
-"""Largest inline map raster (cells), e.g. 150 m × 150 m at 5 cm."""
 MAX_COORDINATE = 1.0e4
 """Largest |entry| of a start or goal state (m, m/s)."""
 MAX_IMPULSE_NS = 1000.0
@@ -136,30 +134,6 @@ MAX_FOOTPRINT_M = 5.0
 """Largest footprint radius (m)."""
 MAX_NOISE_STD_M = 1.0
 """Largest position noise standard deviation (m)."""
-
-
-def _map_cells(mp: Fields) -> None:
-    """Refuse inline maps whose raster would exceed :data:`MAX_MAP_CELLS` (the map
-    loader checks the rest of the geometry)."""
-    from gracenav.maps import DEFAULT_RESOLUTION
-
-    bounds = mp.data.get("bounds")
-    res = as_number(mp.data.get("resolution", DEFAULT_RESOLUTION))
-    try:
-        (x0, y0), (x1, y1) = bounds  # type: ignore[misc]
-        w = float(x1) - float(x0)
-        h = float(y1) - float(y0)
-    except (TypeError, ValueError, OverflowError):
-        return  # malformed: the map loader says how
-    if res is None or res <= 0:
-        return
-    cells = (max(w, 0.0) / res) * (max(h, 0.0) / res)  # inf for absurd bounds
-    if not cells <= MAX_MAP_CELLS:
-        raise mp.fail(
-            f"'map' of {w:g} m × {h:g} m at resolution {res:g} m has {cells:.3g} cells, "
-            f"more than the limit of {MAX_MAP_CELLS:.0e}; use a coarser 'map.resolution' "
-            "or a smaller area"
-        )
 
 
 def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = None) -> Scenario:
@@ -184,8 +158,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         rel = mp.string("ros_map", max_length=4096)
         map_source = (base or Path(".")) / rel
     else:
-        _map_cells(mp)
-        map_source = dict(mp.data)
+        map_source = dict(mp.data)  # checked by the map loader (size limit included)
     robot = top.sub("robot", {})
     robot.check_keys({"footprint_radius"})
     footprint = robot.number(
