@@ -421,16 +421,24 @@ def run_scenario(
     ConfigError, PlanningError
         From :func:`check_scenario`, before the library is built.
     """
+    from gracenav.errors import MapError
     from gracenav.execution import ExecutionOptions, HybridController
     from gracenav.graph import build_graph
     from gracenav.library import build_library
-    from gracenav.maps import load_map
+    from gracenav.maps import INLINE, load_map
     from gracenav.palette import load_palette
     from gracenav.simulate import state_from_position
 
     palette = palette if palette is not None else load_palette()
     plant_params = params if params is not None else palette.params
-    world_map = load_map(scenario.map_source)
+    try:
+        world_map = load_map(scenario.map_source)
+    except MapError as exc:
+        if not isinstance(scenario.map_source, dict):
+            raise
+        # An inline map: name the scenario file and its key.
+        where = str(exc).replace(INLINE, "'map'", 1)
+        raise MapError(f"{scenario.source}: {where}") from None
     check_scenario(scenario, world_map, palette)
     t0 = time.perf_counter()
     library = build_library(
