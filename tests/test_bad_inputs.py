@@ -138,6 +138,12 @@ def test_directory_instead_of_file(tmp_path, capsys) -> None:
     assert status == 2 and "is a directory" in one_line(err)
 
 
+def test_fifo_instead_of_file_does_not_hang(tmp_path, capsys) -> None:
+    os.mkfifo(tmp_path / "pipe.yaml")
+    status, _, err = cli(["run", str(tmp_path / "pipe.yaml"), "--out", str(tmp_path / "o")], capsys)
+    assert status == 2 and "not a regular file" in one_line(err)
+
+
 def test_missing_file(tmp_path, capsys) -> None:
     status, _, err = cli(["run", str(tmp_path / "nope.yaml"), "--out", str(tmp_path / "o")], capsys)
     assert status == 2 and "No such file" in one_line(err)

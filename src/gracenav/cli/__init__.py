@@ -86,6 +86,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("gracenav: interrupted; unfinished outputs discarded", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # e.g. `gracenav palette show | head -1`
+        import os
+
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 141
     except MemoryError:
         print("gracenav: error: out of memory; use a smaller problem", file=sys.stderr)
         return 1
