@@ -1,7 +1,7 @@
 """Shared test set-up: single-threaded BLAS, headless plotting, a private cache.
 
-The primitive cache (``gracenav.primitives.cache_dir``) goes to a temporary directory
-of this test session, never to the user's home.
+The primitive cache (``gracenav.primitives.cache_dir``) and matplotlib's font cache go
+to a temporary directory of this test session, never to the user's home.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 
 _CACHE = tempfile.mkdtemp(prefix="gracenav-test-cache-")
 os.environ["GRACENAV_CACHE_DIR"] = _CACHE
+os.environ.setdefault("MPLCONFIGDIR", os.path.join(_CACHE, "matplotlib"))
 
 
 def pytest_unconfigure(config: object) -> None:

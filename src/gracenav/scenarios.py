@@ -48,6 +48,7 @@ __all__ = [
     "Scenario",
     "ScenarioResult",
     "check_scenario",
+    "estimate_instantiations",
     "load_scenario",
     "parse_scenario",
     "run_scenario",
@@ -270,6 +271,23 @@ def load_scenario(path: str | Path) -> Scenario:
     return parse_scenario(data, source=str(path), base=path.parent)
 
 
+def estimate_instantiations(world_map: Any, palette: Any, max_halvings: int) -> tuple[int, int]:
+    """Policy instantiations the library would try with ``max_halvings`` on ``world_map``
+    (lattice points × 4 orientations × palette policies, summed over the spacings
+    d, d/2, ...), and the largest number of halvings within :data:`MAX_INSTANTIATIONS`
+    (−1 if even one pass exceeds it)."""
+    (x0, y0), (x1, y1) = world_map.bounds
+    w, h = x1 - x0, y1 - y0
+    total = 0
+    allowed = -1
+    for k in range(max_halvings + 1):
+        s = palette.d / 2**k
+        total += (math.floor(w / s) + 1) * (math.floor(h / s) + 1) * 4 * len(palette)
+        if total <= MAX_INSTANTIATIONS:
+            allowed = k
+    return total, allowed
+
+
 def check_scenario(scenario: Scenario, world_map: Any, palette: Any) -> None:
     """Check a scenario against its loaded map and the palette before any heavy work.
 
@@ -289,14 +307,7 @@ def check_scenario(scenario: Scenario, world_map: Any, palette: Any) -> None:
     src = scenario.source
     (x0, y0), (x1, y1) = world_map.bounds
     w, h = x1 - x0, y1 - y0
-    per_point = 4 * len(palette)
-    total = 0
-    allowed = -1
-    for k in range(scenario.max_halvings + 1):
-        s = palette.d / 2**k
-        total += (math.floor(w / s) + 1) * (math.floor(h / s) + 1) * per_point
-        if total <= MAX_INSTANTIATIONS:
-            allowed = k
+    total, allowed = estimate_instantiations(world_map, palette, scenario.max_halvings)
     if total > MAX_INSTANTIATIONS:
         hint = (
             f"use planner.max_halvings <= {allowed}"

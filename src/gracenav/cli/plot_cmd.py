@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 from typing import Any
 
@@ -104,21 +103,19 @@ def run_library(args: argparse.Namespace) -> int:
     from gracenav.maps import load_map
     from gracenav.palette import load_palette
     from gracenav.plotting.library import plot_library
-    from gracenav.scenarios import MAX_INSTANTIATIONS
+    from gracenav.scenarios import MAX_INSTANTIATIONS, estimate_instantiations
 
     out = check_figure_path(args.out)
     palette = load_palette()
     world_map = load_map(args.map)
-    (x0, y0), (x1, y1) = world_map.bounds
-    total = sum(
-        (math.floor((x1 - x0) / s) + 1) * (math.floor((y1 - y0) / s) + 1) * 4 * len(palette)
-        for s in (palette.d / 2**k for k in range(args.max_halvings + 1))
-    )
+    total, allowed = estimate_instantiations(world_map, palette, args.max_halvings)
     if total > MAX_INSTANTIATIONS:
+        (x0, y0), (x1, y1) = world_map.bounds
+        hint = f"use --max-halvings {allowed}" if allowed >= 0 else "use a smaller map"
         raise ConfigError(
             f"--max-halvings {args.max_halvings} on this {x1 - x0:g} m × {y1 - y0:g} m map would "
             f"try about {total:.3g} policy instantiations, more than the budget of "
-            f"{MAX_INSTANTIATIONS:.0e}; use fewer halvings"
+            f"{MAX_INSTANTIATIONS:.0e}; {hint}"
         )
     lib = build_library(
         palette,
