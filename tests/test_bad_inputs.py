@@ -155,6 +155,7 @@ KEYS = [
     ({"bogus": 1}, "unknown key(s) 'bogus'"),
     ({"name": 3}, "'name' must be a non-empty one-line string"),
     ({"name": "a\nb"}, "'name'"),
+    ({"name": "\x1b[2Jwiped"}, "without control characters"),
     ({"name": ...}, "missing key 'name'"),
     ({"map": [1, 2]}, "'map' must be a mapping, got a list"),
     ({"map": ...}, "missing key 'map'"),
@@ -255,7 +256,11 @@ def test_halvings_over_budget_give_the_estimate(tmp_path, capsys) -> None:
     [
         ({"task.starts": [[9.0, 9.0, 0, 0]]}, "'task.starts[0]' (9, 9) is outside the map"),
         ({"task.goal": [0.1, 0.1, 0, 0]}, "'task.goal' (0.1, 0.1) is inside an obstacle"),
-        ({"task.goal": [2.1, 1.47, 0.3, 0]}, "outside coverage"),
+        ({"task.goal": [2.1, 1.47, 0.3, 0]}, "'task.goal': goal (2.1, 1.47, 0.3, 0.0) is outside"),
+        (
+            {"task.starts": [[1.0, 1.5, 0, 0], [1.1, 1.43, 0.2, 0]]},
+            "'task.starts[1]': start (1.1, 1.43, 0.2, 0): no library policy",
+        ),
         ({"map.ros_map": "nowhere.yaml", "map.bounds": ...}, "nowhere.yaml"),
         ({"map.bounds": [[0, 0], [1]]}, "bounds"),
     ],
@@ -447,6 +452,22 @@ def test_previous_results_are_replaced_as_a_whole(tmp_path, capsys) -> None:
     assert cli(argv, capsys)[0] == 0
     assert (out / "trajectory.csv").read_text().startswith("t,x,y")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["o"]  # no staging, lock or old dir
+
+
+def test_leftovers_of_a_killed_run_are_recovered(tmp_path, capsys) -> None:
+    # A run killed outright between the two renames of its publication: the previous
+    # results are in .o.old-*/previous, its new ones in .o.tmp-*, and there is no o.
+    old = tmp_path / ".o.old-x1" / "previous"
+    old.mkdir(parents=True)
+    (old / "trajectory.csv").write_text("previous")
+    (tmp_path / ".o.tmp-x2").mkdir()
+    (tmp_path / ".o.lock").write_text("")
+    # The next run into o restores them first (here it then fails on its scenario).
+    path = write(tmp_path, scenario(**{"planner.max_halvings": 8}))
+    status, _, err = cli(["run", str(path), "--out", str(tmp_path / "o")], capsys)
+    assert status == 2 and "policy instantiations" in one_line(err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["o", "s.yaml"]
+    assert (tmp_path / "o" / "trajectory.csv").read_text() == "previous"
 
 
 @pytest.mark.parametrize(

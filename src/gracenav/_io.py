@@ -203,6 +203,13 @@ OUTPUT_NAMES = frozenset(
 anything else is not replaced."""
 
 
+def glob_escape(name: str) -> str:
+    """``name`` with glob metacharacters escaped."""
+    import glob
+
+    return glob.escape(name)
+
+
 def _blocked_signals() -> Any:
     """A context in which SIGINT and SIGTERM wait until it ends (main thread only)."""
     import contextlib
@@ -271,6 +278,7 @@ class OutputDir:
     created beside it; write every file into :attr:`staging`. On a normal exit the
     staging directory replaces ``path`` (previous results are removed only then); on an
     exception, including KeyboardInterrupt, it is deleted and ``path`` is untouched.
+    Leftovers of a run killed outright are cleaned up by the next run into ``path``.
     All of this happens before any heavy work, so an unusable ``path`` fails at once.
 
     Parameters
@@ -337,6 +345,7 @@ class OutputDir:
             raise self._fail(f"create {self.path.parent}", exc) from None
         self._lock()
         try:
+            self._recover()
             check_output_dir(self.path, self.flag)  # again, now that we hold the lock
             self.staging = Path(
                 tempfile.mkdtemp(prefix=f".{self.path.name}.tmp-", dir=self.path.parent)
@@ -360,6 +369,22 @@ class OutputDir:
                 shutil.rmtree(self.staging, ignore_errors=True)
         finally:
             self._unlock()
+
+    def _recover(self) -> None:
+        """Clean up after a run that was killed outright (SIGKILL, power loss): restore
+        the previous results if it died between the two renames of :meth:`_publish`,
+        and delete its staging directories. Called with the lock held, so no other run
+        owns them."""
+        import shutil
+
+        parent, name = self.path.parent, self.path.name
+        for old in sorted(parent.glob(f".{glob_escape(name)}.old-*")):
+            previous = old / "previous"
+            if previous.is_dir() and not (self.path.exists() or self.path.is_symlink()):
+                os.replace(previous, self.path)
+            shutil.rmtree(old, ignore_errors=True)
+        for tmp in parent.glob(f".{glob_escape(name)}.tmp-*"):
+            shutil.rmtree(tmp, ignore_errors=True)
 
     def _publish(self) -> None:
         import shutil

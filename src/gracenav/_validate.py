@@ -190,12 +190,18 @@ class Fields:
         return v
 
     def string(self, key: str, default: Any = _MISSING, *, max_length: int = 200) -> str:
-        """A non-empty, single-line string of at most ``max_length`` characters."""
+        """A non-empty, single-line string of at most ``max_length`` characters, without
+        control characters (which would garble a terminal)."""
         v = self.get(key, default)
-        if not isinstance(v, str) or not v.strip() or len(v) > max_length or "\n" in v:
+        if (
+            not isinstance(v, str)
+            or not v.strip()
+            or len(v) > max_length
+            or any(ord(c) < 32 or 127 <= ord(c) < 160 for c in v)
+        ):
             raise self.fail(
                 f"'{self.path(key)}' must be a non-empty one-line string of at most "
-                f"{max_length} characters, got {show(v)}"
+                f"{max_length} characters without control characters, got {show(v)}"
             )
         return v
 

@@ -469,6 +469,7 @@ def run_scenario(
         ),
     )
     radius = plant_params.ball_radius
+    _check_task(scenario, HybridController(library, graph, criterion=scenario.cost), options)
     episodes = []
     runs = []
     for i, start in enumerate(scenario.starts):
@@ -496,6 +497,32 @@ def run_scenario(
         world_map=world_map,
         library=library,
     )
+
+
+def _check_task(scenario: Scenario, hc: Any, options: Any) -> None:
+    """Every goal and every start must be possible before the first run starts: a bad
+    third start should not cost the first two runs. Each start is probed by a one-tick
+    run; the message names the key."""
+    from dataclasses import replace as _replace
+
+    from gracenav.errors import PlanningError
+    from gracenav.simulate import state_from_position
+
+    ptp = scenario.kind == "point_to_point"
+    for j, goal in enumerate(scenario.goals):
+        try:
+            hc.goal_policy(goal)
+        except PlanningError as exc:
+            key = "task.goal" if ptp else f"task.goals[{j}]"
+            raise PlanningError(f"{scenario.source}: '{key}': {exc}") from None
+    probe = _replace(options, max_time=1.0 / 1024.0)
+    for i, start in enumerate(scenario.starts):
+        x0 = state_from_position(np.asarray(start), hc.params.ball_radius)
+        try:
+            hc.run(x0, scenario.goals, options=probe)
+        except PlanningError as exc:
+            key = f"task.starts[{i}]" if ptp else "task.start"
+            raise PlanningError(f"{scenario.source}: '{key}': {exc}") from None
 
 
 def _summarise(
