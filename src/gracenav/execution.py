@@ -131,7 +131,8 @@ class ExecutionOptions:
         Resume the task from balancing mode once a start domain contains the state (a
         gracenav extension: the paper assumes 100 % coverage and stops the task).
     simulation : SimulationOptions
-        Integration substeps and sensor noise.
+        Integration substeps, sensor noise and the fall limit (a fall ends the task
+        with :attr:`TaskStatus.FELL`).
     """
 
     plant: Literal["model3d", "mujoco"] = "model3d"
