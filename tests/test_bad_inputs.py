@@ -377,6 +377,14 @@ def test_simulate_balance_reports_a_fall(tmp_path, capsys) -> None:
     assert (out / "trajectory.csv").exists()
 
 
+def test_simulate_balance_reports_a_diverged_plant(tmp_path, capsys) -> None:
+    params = write(tmp_path, "ball_radius: 1.0e9\n", "p.yaml")
+    argv = ["simulate", "balance", "--params", str(params), "--out", str(tmp_path / "o")]
+    status, stdout, err = cli(argv, capsys)
+    assert status == 1 and "diverged" in one_line(err, "gracenav: fell:")
+    assert "nan" not in stdout
+
+
 # -- --params ------------------------------------------------------------------------------
 
 

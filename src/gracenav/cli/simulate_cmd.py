@@ -138,15 +138,20 @@ def run_balance(args: argparse.Namespace) -> int:
         )
     dest: Path = args.out
     final = float(np.hypot(*p[-1, :2]))
+    distance = f"{final * 1000:.1f} mm" if math.isfinite(final) else "undefined"
     print(
         f"max lean {np.rad2deg(result.max_lean):.2f}°, max torque {result.max_torque:.1f} N m, "
-        f"final distance from start {final * 1000:.1f} mm; wrote {dest / 'trajectory.csv'} "
+        f"final distance from start {distance}; wrote {dest / 'trajectory.csv'} "
         f"and {dest / 'balance.png'}"
     )
     if result.stop_reason is StopReason.FELL:
+        why = (
+            f"lean beyond {math.degrees(options.fall_lean):g}°"
+            if np.all(np.isfinite(result.states[-1]))
+            else "the simulation diverged: are the --params physical?"
+        )
         print(
-            f"gracenav: fell: the robot fell over at t = {result.time[-1]:.2f} s (lean beyond "
-            f"{math.degrees(options.fall_lean):g}°)",
+            f"gracenav: fell: the robot fell over at t = {result.time[-1]:.3f} s ({why})",
             file=sys.stderr,
         )
         return 1
