@@ -419,6 +419,35 @@ def test_params_json_duplicate_key(tmp_path, capsys) -> None:
     assert status == 2 and "duplicate key 'body_mass'" in one_line(err)
 
 
+def test_params_ball_radius_is_fixed_for_navigation(tmp_path, capsys) -> None:
+    params = write(tmp_path, "ball_radius: 0.12\n", "p.yaml")
+    path = write(tmp_path, BASE)
+    argv = ["run", str(path), "--params", str(params), "--out", str(tmp_path / "o")]
+    status, _, err = cli(argv, capsys)
+    assert status == 2 and "'ball_radius' must stay 0.1058 m" in one_line(err)
+    assert not (tmp_path / "o").exists()
+
+
+def test_non_physical_params_end_without_hanging(tmp_path, capsys) -> None:
+    # A body of 1 mg under the nominal controller: the task ends (here in balancing
+    # mode) within max_time; it used to be able to loop without advancing time.
+    params = write(tmp_path, "body_mass: 1.0e-6\n", "p.yaml")
+    path = write(tmp_path, scenario(**{"simulation.max_time": 6}))
+    argv = [
+        "run",
+        str(path),
+        "--params",
+        str(params),
+        "--out",
+        str(tmp_path / "o"),
+        "--no-animation",
+    ]
+    status, _, err = cli(argv, capsys)
+    assert status == 1 and "Traceback" not in err
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["runs"][0]["time_s"] <= 6.0 + 1 / 1024
+
+
 def test_partial_params_file_is_valid(tmp_path, capsys) -> None:
     params = write(tmp_path, "body_mass: 60.0\n", "p.yaml")
     out = tmp_path / "o"

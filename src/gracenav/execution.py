@@ -454,7 +454,9 @@ class HybridController:
         sequence = goal_ids * loops
         goal_states = [np.asarray(g, dtype=float) for g in goals] * loops
         dt = 1.0 / 1024.0
-        r = self.params.ball_radius
+        # Decisions use the position the controller measures (its own ball radius, as the
+        # compiled loop's domain monitor does); the episode reports the plant's.
+        r = self.gains.params.ball_radius
         x = np.asarray(x0, dtype=float).copy()
         p = position_state(x, r)
         k_goal = 0
@@ -523,7 +525,9 @@ class HybridController:
                 break
             if res.stop_reason is StopReason.DOMAIN_EXIT:
                 reason = EventReason.DOMAIN_EXIT
-                nxt = self.best_policy(p, tree)
+                # A policy that exits at its first tick is not followed by another at
+                # once: balancing mode runs first, so every pass of this loop advances.
+                nxt = self.best_policy(p, tree) if last > 0 else -1
             elif not inst.goal_domain.contains(p):
                 reason = EventReason.NOT_IN_GOAL
                 nxt = self.best_policy(p, tree)
@@ -574,7 +578,7 @@ class HybridController:
                         options.balance_time - waited,
                         (max_ticks - ticks) * dt,
                     )
-                    hold = Reference.hold(hold_xy, chunk, params=self.params)
+                    hold = Reference.hold(hold_xy, chunk, params=self.gains.params)
                     local, inst_idx = _segment_disturbances(
                         disturbances, t, dt, hold.num_ticks, applied
                     )
@@ -630,5 +634,5 @@ class HybridController:
             status=status,
             goals_reached=tuple(goals_reached),
             tree_seconds=tuple(self.tree_seconds),
-            radius=r,
+            radius=self.params.ball_radius,
         )

@@ -424,6 +424,7 @@ def run_scenario(
     params : BallbotParams, optional
         Physical parameters of the simulated robot (default: the palette's); the
         controllers keep the palette's design, so different values test robustness.
+        ``ball_radius`` must be the palette's (positions are measured with it).
     progress : callable(done, total), optional
         Called after each run.
 
@@ -442,6 +443,12 @@ def run_scenario(
 
     palette = palette if palette is not None else load_palette()
     plant_params = params if params is not None else palette.params
+    if plant_params.ball_radius != palette.params.ball_radius:
+        raise ConfigError(
+            f"the simulated robot's ball_radius ({plant_params.ball_radius:g} m) must be the "
+            f"palette's ({palette.params.ball_radius:g} m): the controllers measure position "
+            "from the ball's rotation with it; the other parameters may differ"
+        )
     try:
         world_map = load_map(scenario.map_source)
     except MapError as exc:
@@ -469,7 +476,8 @@ def run_scenario(
         ),
     )
     radius = plant_params.ball_radius
-    _check_task(scenario, HybridController(library, graph, criterion=scenario.cost), options)
+    probe = HybridController(library, graph, criterion=scenario.cost, params=plant_params)
+    _check_task(scenario, probe, options)
     episodes = []
     runs = []
     for i, start in enumerate(scenario.starts):
