@@ -1,21 +1,28 @@
 # Quick start (see README.md):
 #   make demo   -- set up a virtual environment and run the main job
 #   make test   -- set up and run the whole test suite, lint and type checks
+# Installs take every version from requirements/lock.txt (see `make lock`).
+# `make test VENV=.venv-latest CONSTRAINTS=` runs the suite on the newest versions instead.
 PYTHON ?= python3
-VENV := .venv
+VENV ?= .venv
 PY := $(VENV)/bin/python
+CONSTRAINTS ?= requirements/lock.txt
 export OPENBLAS_NUM_THREADS := 1
 export MPLBACKEND := Agg
+# The lock also pins what pip builds the project with (setuptools in the isolated build).
+ifneq ($(CONSTRAINTS),)
+export PIP_CONSTRAINT := $(abspath $(CONSTRAINTS))
+endif
 
-.PHONY: demo test setup setup-test lint typecheck bench clean
+.PHONY: demo test setup setup-test lint typecheck bench lock clean
 
-$(VENV)/.installed: pyproject.toml
+$(VENV)/.installed: pyproject.toml $(CONSTRAINTS)
 	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet --upgrade pip setuptools
 	$(PY) -m pip install --quiet -e .
 	touch $@
 
-$(VENV)/.installed-test: $(VENV)/.installed pyproject.toml
+$(VENV)/.installed-test: $(VENV)/.installed pyproject.toml $(CONSTRAINTS)
 	$(PY) -m pip install --quiet -e ".[test]"
 	touch $@
 
@@ -36,7 +43,22 @@ test: lint typecheck
 	$(PY) -m pytest -q
 
 bench: setup-test
+	$(PY) -m pip install --quiet -e ".[bench]"
 	for b in bench/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
 
+# Re-resolve every dependency (with all extras) to the newest versions the package
+# index serves, in a throwaway environment, and write them to requirements/lock.txt.
+lock:
+	rm -rf .venv-lock
+	env -u PIP_CONSTRAINT $(PYTHON) -m venv .venv-lock
+	env -u PIP_CONSTRAINT .venv-lock/bin/python -m pip install --quiet --upgrade pip setuptools
+	env -u PIP_CONSTRAINT .venv-lock/bin/python -m pip install --quiet ".[test,mujoco,bench]"
+	mkdir -p requirements
+	{ echo "# Every package the Makefile installs, pinned; regenerate with 'make lock'."; \
+	  echo "# Resolved on $$(date -u +%Y-%m-%d) with $$(.venv-lock/bin/python --version)."; \
+	  .venv-lock/bin/python -m pip freeze --all | grep -v '^gracenav' | LC_ALL=C sort -f; \
+	} > requirements/lock.txt
+	rm -rf .venv-lock
+
 clean:
-	rm -rf $(VENV) out .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) .venv-latest .venv-lock out .pytest_cache .mypy_cache .ruff_cache

@@ -6,7 +6,7 @@ Prints a table for two maps:
   library policies, instantiation + graph in 2.5 s; our target <= 50 ms), one
   pass at spacing d as in the paper and, for information, the default
   coverage-driven refinement (up to 3 halvings);
-* a 50 m × 50 m synthetic office at 5 cm resolution (``maps.office_map``),
+* a 50 m × 50 m synthetic office at 5 cm resolution (``world.office_map``),
   one pass at spacing d (target <= 5 s for library + graph),
 
 with library size, edges, coverage, medians of repeated runs, and peak memory
@@ -38,7 +38,6 @@ from gracenav.control import design_gains
 from gracenav.errors import CacheError
 from gracenav.graph import build_graph
 from gracenav.library import PolicyLibrary, build_library
-from gracenav.maps import WorldMap, load_map, office_map
 from gracenav.palette import Palette, load_palette, palette_key
 from gracenav.params import BallbotParams
 from gracenav.policies import (
@@ -48,6 +47,7 @@ from gracenav.policies import (
     SampledPrimitive,
     VerificationOptions,
 )
+from gracenav.world import WorldMap, load_map, office_map
 
 DT = 1.0 / 1024.0
 V = 0.5  # cruise speed along an axis (m/s)

@@ -23,11 +23,11 @@ import numpy as np
 from gracenav.execution import HybridController
 from gracenav.graph import build_graph
 from gracenav.library import build_library
-from gracenav.maps import load_map
 from gracenav.palette import load_palette
 from gracenav.planning import plan_tree
 from gracenav.scenarios import load_scenario
 from gracenav.simulate import state_from_position
+from gracenav.world import load_map
 
 
 def main() -> None:

@@ -14,13 +14,13 @@ from gracenav import ConfigError
 from gracenav.control import ControllerGains
 from gracenav.graph import PreparesGraph, build_graph, gains_equal, gracefully_prepares
 from gracenav.library import PolicyLibrary, build_library
-from gracenav.maps import WorldMap, load_map
 from gracenav.palette import Palette
 from gracenav.policies import (
     MotionPolicy,
     PrimitiveKind,
     SampledPrimitive,
 )
+from gracenav.world import WorldMap, load_map
 
 X, Y, Z = (0.5, 0.0), (0.0, 0.5), (0.0, 0.0)
 

@@ -16,13 +16,13 @@ from gracenav.library import (
     quarter_turn,
     sample_position_states,
 )
-from gracenav.maps import WorldMap, load_map
 from gracenav.palette import Palette
 from gracenav.policies import (
     MotionPolicy,
     PrimitiveKind,
     SampledPrimitive,
 )
+from gracenav.world import WorldMap, load_map
 
 # -- inline fixtures: primitives with septic position references ------------------------
 

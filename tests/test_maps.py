@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from gracenav import ConfigError, MapError
-from gracenav.maps import (
+from gracenav.world import (
     DEFAULT_RESOLUTION,
     Circle,
     Polygon,
@@ -28,9 +28,7 @@ from gracenav.maps import (
     WorldMap,
     load_map,
     office_map,
-    read_pgm,
     save_ros_map,
-    write_pgm,
 )
 
 DATA = Path(__file__).parent / "data" / "maps"
@@ -263,22 +261,29 @@ def test_png_gray_colour_alpha_palette(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(("bits", "color"), [(8, 0), (16, 0), (8, 2), (16, 6), (8, 4), (4, 0)])
 def test_png_decoder_undoes_every_row_filter(tmp_path: Path, bits: int, color: int) -> None:
-    from gracenav.maps import _decode_png
+    from gracenav.world.ros_map import _decode_image as _decode_png
 
     rng = np.random.default_rng(bits * 10 + color)
     channels = {0: 1, 2: 3, 4: 2, 6: 4}[color]
     img = rng.integers(0, 1 << bits, size=(23, 17, channels))
     filters = rng.integers(0, 5, size=23)
     pixels, maxval, alpha = _decode_png(png_bytes(img, bits, color, filters=filters), "test")
-    np.testing.assert_array_equal(pixels, img)
-    assert maxval == (1 << bits) - 1
+    if bits == 16 and color != 0:  # Pillow keeps 8 bits per colour channel (the high byte)
+        np.testing.assert_array_equal(pixels, img >> 8)
+        assert maxval == 255
+    elif bits < 8:  # 2- and 4-bit gray come back scaled to 0..255 (exactly: 17 · v)
+        np.testing.assert_array_equal(pixels, img * (255 // ((1 << bits) - 1)))
+        assert maxval == 255
+    else:
+        np.testing.assert_array_equal(pixels, img)
+        assert maxval == (1 << bits) - 1
     assert alpha == (color in (4, 6))
 
 
 def test_png_written_by_matplotlib_decodes_exactly() -> None:
     import matplotlib.image as mpimg
 
-    from gracenav.maps import _decode_png
+    from gracenav.world.ros_map import _decode_image as _decode_png
 
     rng = np.random.default_rng(3)
     rgba = rng.integers(0, 256, size=(31, 29, 4)).astype(np.uint8)
@@ -315,9 +320,9 @@ def test_save_ros_map_round_trip(tmp_path: Path) -> None:
     m = WorldMap(
         m.origin + np.array([2.0, -1.0]), m.resolution, m.occupied | unknown, unknown=unknown
     )
-    for binary in (True, False):
-        image = save_ros_map(m, tmp_path / "saved.yaml", binary=binary)
-        assert image == tmp_path / "saved.pgm"
+    for image_format in ("pgm", "png"):
+        image = save_ros_map(m, tmp_path / "saved.yaml", image_format=image_format)
+        assert image == tmp_path / f"saved.{image_format}"
         back = load_map(tmp_path / "saved.yaml")
         np.testing.assert_array_equal(back.occupied, m.occupied)
         assert back.unknown is not None
@@ -695,17 +700,14 @@ def test_ros_missing_key_and_missing_image(tmp_path: Path) -> None:
 
 
 IMAGE_ERRORS: list[tuple[bytes, list[str]]] = [
-    (b"P5\n4 3\n255\n" + bytes(5), ["truncated PGM", "re-export"]),
-    (b"P5\n4 3\n255\n" + bytes(12) + b"extra", ["inconsistent"]),
-    (b"P5\n4 3\n", ["truncated PGM header", "maxval"]),
-    (b"P5\n4 x3\n255\n" + bytes(12), ["corrupt PGM header", "height"]),
-    (b"P5\n4 3\n70000\n" + bytes(24), ["maxval must be in 1..65535"]),
-    (b"P5\n0 3\n255\n", ["zero width"]),
-    (b"P2\n2 2\n255\n1 2 3\n", ["truncated PGM", "2 × 2 = 4 pixels but 3"]),
-    (b"P2\n2 2\n255\n1 2 3 4 5\n", ["inconsistent PGM"]),
-    (b"P2\n2 2\n255\n1 2 3 x\n", ["corrupt PGM", "'x'"]),
-    (b"P2\n2 2\n100\n1 2 3 101\n", ["exceed maxval 100"]),
-    (b"P5\n2 2\n100\n\x01\x02\x03\xff", ["exceed maxval 100"]),
+    (b"P5\n4 3\n255\n" + bytes(5), ["cannot decode the PGM", "truncated", "re-export"]),
+    (b"P5\n4 3\n", ["corrupt PGM header", "EOF", "re-export"]),
+    (b"P5\n4 x3\n255\n" + bytes(12), ["corrupt PGM header", "x3"]),
+    (b"P5\n4 3\n70000\n" + bytes(24), ["corrupt PGM header", "maxval"]),
+    (b"P5\n0 3\n255\n", ["corrupt or truncated PGM"]),
+    (b"P2\n2 2\n255\n1 2 3\n", ["cannot decode the PGM", "not enough image data"]),
+    (b"P2\n2 2\n255\n1 2 3 x\n", ["cannot decode the PGM", "'x'"]),
+    (b"P2\n2 2\n100\n1 2 3 101\n", ["cannot decode the PGM", "101"]),
     (b"\xff\xd8\xff\xe0JFIF", ["unsupported image format", "PGM or PNG"]),
     (b"", ["unsupported image format"]),
 ]
@@ -722,22 +724,35 @@ def test_corrupt_images(tmp_path: Path, data: bytes, needles: list[str]) -> None
         assert needle in msg, msg
 
 
+def test_netpbm_files_with_trailing_data_or_clamped_values_load(tmp_path: Path) -> None:
+    # A netpbm file may hold several images one after another: the first one is read.
+    m = load_map(ros_map(tmp_path, b"P5\n4 3\n255\n" + bytes([254] * 12) + b"extra"))
+    assert m.grid_shape == (3, 4) and not m.occupied.any()
+    m = load_map(ros_map(tmp_path, b"P2\n2 2\n255\n254 254 0 254 7\n"))
+    np.testing.assert_array_equal(m.occupied, [[True, False], [False, False]])
+    # Pillow clamps binary samples above maxval to maxval (white: free here).
+    m = load_map(ros_map(tmp_path, b"P5\n2 2\n100\n\x00\x64\x64\xff"))
+    np.testing.assert_array_equal(m.occupied, [[False, False], [True, False]])
+
+
 def test_corrupt_pngs(tmp_path: Path) -> None:
     good = png_bytes(np.full((4, 5), 200))
     bad_crc = bytearray(good)
     bad_crc[20] ^= 0xFF  # inside IHDR
-    truncated_data = (
+    rows = b"".join(b"\x00" + bytes(range(k, k + 60)) for k in range(50))
+    stream = zlib.compress(rows)
+    cut_stream = (
         good[:8]
-        + _chunk(b"IHDR", good[16:29])
-        + _chunk(b"IDAT", zlib.compress(bytes(6 * 3)))
+        + _chunk(b"IHDR", struct.pack(">IIBBBBB", 60, 50, 8, 0, 0, 0, 0))
+        + _chunk(b"IDAT", stream[: len(stream) // 2])
         + _chunk(b"IEND", b"")
     )
     cases = [
-        (good[:40], "truncated PNG"),
-        (bytes(bad_crc), "bad CRC"),
-        (png_bytes(np.full((4, 5), 200), interlace=1), "interlaced"),
-        (truncated_data, "truncated PNG"),
-        (good[:8] + _chunk(b"IEND", b""), "missing IHDR"),
+        (good[:40], "corrupt or truncated PNG"),
+        (bytes(bad_crc), "corrupt or truncated PNG"),
+        (png_bytes(np.full((4, 5), 200), interlace=1), "cannot decode the PNG"),
+        (cut_stream, "cannot decode the PNG.*truncated"),
+        (good[:8] + _chunk(b"IEND", b""), "corrupt or truncated PNG"),
         (png_bytes(np.full((2, 2), 200), filters=np.array([3, 4])), ""),  # control: loads
     ]
     for data, needle in cases:
@@ -800,15 +815,21 @@ def test_direct_construction_errors() -> None:
 
 
 def test_pgm_writer_and_reader_agree(tmp_path: Path) -> None:
-    img = np.arange(12).reshape(3, 4) * 20
-    write_pgm(tmp_path / "a.pgm", img)
-    back, maxval = read_pgm(tmp_path / "a.pgm")
-    assert maxval == 255
-    np.testing.assert_array_equal(back, img)
-    with pytest.raises(ConfigError):
-        write_pgm(tmp_path / "b.pgm", img, maxval=100)
+    from PIL import Image
+
+    from gracenav.world.ros_map import _decode_image
+
+    img = (np.arange(12).reshape(3, 4) * 20).astype(np.uint8)
+    buf = io.BytesIO()
+    Image.fromarray(img).save(buf, format="PPM")
+    back, maxval, alpha = _decode_image(buf.getvalue(), "test")
+    assert maxval == 255 and not alpha
+    np.testing.assert_array_equal(back[..., 0], img)
+    m = WorldMap(np.zeros(2), 0.1, np.zeros((2, 3), dtype=bool))
+    with pytest.raises(ConfigError, match="image_format"):
+        save_ros_map(m, tmp_path / "b.yaml", image_format="bmp")  # type: ignore[arg-type]
     with pytest.raises(MapError, match="file not found"):
-        read_pgm(tmp_path / "none.pgm")
+        load_map(tmp_path / "none.yaml")
 
 
 # ----------------------------------------------------------------------------------------
@@ -1010,17 +1031,21 @@ def test_garbage_ros_files_raise_map_error_only(
     st.booleans(),
 )
 def test_random_grids_round_trip_through_pgm(img: np.ndarray, binary: bool, negate: bool) -> None:
+    from PIL import Image
+
+    from gracenav.world.ros_map import _decode_image
+
     maxval = 255 if img.dtype == np.uint8 else 65535
     with tempfile.TemporaryDirectory() as d:
         folder = Path(d)
-        # the test's own writer, then the module's writer
+        # the test's own writer, then Pillow's (binary P5 only)
         (folder / "a.pgm").write_bytes(pgm_bytes(img, maxval, binary=binary))
-        back, mv = read_pgm(folder / "a.pgm")
-        np.testing.assert_array_equal(back, img)
+        back, mv, _ = _decode_image((folder / "a.pgm").read_bytes(), "a.pgm")
+        np.testing.assert_array_equal(back[..., 0], img)
         assert mv == maxval
-        write_pgm(folder / "b.pgm", img, maxval=maxval, binary=binary)
-        back, mv = read_pgm(folder / "b.pgm")
-        np.testing.assert_array_equal(back, img)
+        Image.fromarray(img).save(folder / "b.pgm", format="PPM")
+        back, mv, _ = _decode_image((folder / "b.pgm").read_bytes(), "b.pgm")
+        np.testing.assert_array_equal(back[..., 0], img)
         assert mv == maxval
         m = load_map(ros_yaml(folder, "a.pgm", negate=int(negate)))
         p = img / maxval if negate else (maxval - img.astype(float)) / maxval
@@ -1035,7 +1060,7 @@ def test_random_grids_round_trip_through_pgm(img: np.ndarray, binary: bool, nega
     st.data(),
 )
 def test_random_grids_round_trip_through_png(img: np.ndarray, data: st.DataObject) -> None:
-    from gracenav.maps import _decode_png
+    from gracenav.world.ros_map import _decode_image as _decode_png
 
     filters = np.array(data.draw(st.lists(st.integers(0, 4), min_size=len(img), max_size=len(img))))
     pixels, maxval, alpha = _decode_png(png_bytes(img, filters=filters), "test")

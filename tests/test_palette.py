@@ -3,13 +3,25 @@
 from __future__ import annotations
 
 import dataclasses
+import json
+import time
 
 import numpy as np
 import pytest
 
+import gracenav.palette as palette_module
 from gracenav import BallbotParams, CacheError
-from gracenav.palette import Palette, load_palette, shipped_palette_path
+from gracenav.control import ControllerGains, LQRWeights, design_gains
+from gracenav.palette import (
+    PALETTE_ENV,
+    Palette,
+    cached_palette_path,
+    load_palette,
+    palette_key,
+    shipped_palette_path,
+)
 from gracenav.policies import VerificationOptions
+from gracenav.primitives import PrimitiveSetOptions
 
 
 def test_shipped_palette_loads_and_round_trips(tmp_path) -> None:
@@ -41,19 +53,142 @@ def test_missing_file(tmp_path) -> None:
         load_palette(tmp_path / "none.npz")
 
 
-def test_mismatched_parameters_are_refused() -> None:
+def _perturbed(gains: ControllerGains, rel: float) -> ControllerGains:
+    """The same design with every gain scaled by (1 + rel)."""
+    return dataclasses.replace(gains, lqr=gains.lqr * (1.0 + rel))
+
+
+def test_key_hashes_inputs_not_computed_gains() -> None:
+    params = BallbotParams()
+    gains = design_gains(params)
+    options = VerificationOptions()
+    key = palette_key(params, gains, options, 0.5)
+    # the designed gains are an output: noise in them must not change the key
+    assert palette_key(params, _perturbed(gains, 1e-6), options, 0.5) == key
+    # every design input does
+    other_weights = design_gains(params, LQRWeights(position=201.0))
+    assert palette_key(params, other_weights, options, 0.5) != key
+    assert (
+        palette_key(params, design_gains(params, friction_compensation=False), options, 0.5) != key
+    )
+    heavier = dataclasses.replace(params, body_mass=60.0)
+    assert palette_key(heavier, gains, options, 0.5) != key
+    assert palette_key(params, gains, VerificationOptions(boundary_points=65), 0.5) != key
+    assert palette_key(params, gains, options, 0.25) != key
+
+
+def test_shipped_key_is_recomputed_from_its_header() -> None:
+    path = shipped_palette_path()
+    with np.load(path, allow_pickle=False) as z:
+        header = json.loads(z["header"].tobytes().decode())
+    gp = header["gains"]
+    gains = ControllerGains(
+        lqr=np.asarray(gp["lqr"]),
+        params=BallbotParams.from_dict(gp["params"]),
+        max_lean_compensation=gp["max_lean_compensation"],
+        friction_compensation=gp["friction_compensation"],
+        weights=LQRWeights(**gp["weights"]),
+    )
+    recomputed = palette_key(
+        BallbotParams.from_dict(header["params"]),
+        gains,
+        VerificationOptions(**header["options"]),
+        header["d"],
+        PrimitiveSetOptions.from_dict(header["primitive_options"]),
+    )
+    assert header["key"] == recomputed
+    # and the shipped palette is the one this version's defaults ask for
+    assert recomputed == palette_key(BallbotParams(), design_gains(), VerificationOptions(), 0.5)
+
+
+@pytest.mark.parametrize("forced", [False, True])
+def test_floating_point_noise_in_gains_is_accepted(forced: bool) -> None:
+    """Gains redesigned on another numpy/scipy build differ by ~1e-14: still the palette."""
+    gains = _perturbed(design_gains(), 1e-12)
+    path = shipped_palette_path() if forced else None
+    pal = load_palette(path, gains=gains, build=False)
+    assert pal.key == load_palette(build=False).key
+    assert pal.gains.relative_difference(gains) == pytest.approx(1e-12, rel=1e-3)
+
+
+def test_real_change_of_gains_is_refused_with_what_differs() -> None:
+    gains = _perturbed(design_gains(), 1e-6)
+    with pytest.raises(
+        CacheError, match=r"gains differ .* by a relative 1\.0e-06 \(tolerance 1e-08\)"
+    ):
+        load_palette(shipped_palette_path(), gains=gains)
+    with pytest.raises(CacheError, match="no palette matches"):
+        load_palette(gains=gains, build=False)
+
+
+def test_forced_file_for_other_inputs_says_what_differs(monkeypatch, tmp_path) -> None:
     heavier = dataclasses.replace(BallbotParams(), body_mass=60.0)
-    with pytest.raises(CacheError, match="built for other robot parameters"):
+    with pytest.raises(CacheError, match=r"robot parameter body_mass: 51\.66 in the file, 60\.0"):
+        load_palette(shipped_palette_path(), params=heavier)
+    with pytest.raises(CacheError, match=r"verification option goal_position_extent: 0\.08"):
+        load_palette(shipped_palette_path(), options=VerificationOptions(goal_position_extent=0.05))
+    # $GRACENAV_PALETTE forces a file like --palette does
+    monkeypatch.setenv(PALETTE_ENV, str(shipped_palette_path()))
+    with pytest.raises(CacheError, match="cannot be used"):
         load_palette(params=heavier)
-    with pytest.raises(CacheError, match="built for other"):
-        load_palette(options=VerificationOptions(goal_position_extent=0.05))
+    monkeypatch.setenv(PALETTE_ENV, str(tmp_path / "missing.npz"))
+    with pytest.raises(CacheError, match="cannot read palette file"):
+        load_palette()
+
+
+def test_mismatch_is_rebuilt_once_then_cached_and_corrupt_cache_rebuilt(
+    monkeypatch, tmp_path
+) -> None:
+    """The rebuild path, with the (slow) build replaced by a relabelled shipped palette."""
+    monkeypatch.setenv("GRACENAV_CACHE_DIR", str(tmp_path))
+    shipped = load_palette(build=False)
+    heavier = dataclasses.replace(BallbotParams(), body_mass=52.0)
+    builds: list[float] = []
+
+    def fake_build(*, params, gains, options, d, processes, progress):  # type: ignore[no-untyped-def]
+        builds.append(params.body_mass)
+        return dataclasses.replace(
+            shipped,
+            policies=tuple(dataclasses.replace(p, gains=gains) for p in shipped.policies),
+            params=params,
+            key=palette_key(params, gains, options, d),
+        )
+
+    monkeypatch.setattr(palette_module, "build_palette_for", fake_build)
+    first = load_palette(params=heavier)
+    assert builds == [52.0] and first.params.body_mass == 52.0
+    cached = cached_palette_path(first.key)
+    assert cached.is_file() and [p.name for p in tmp_path.iterdir()] == [cached.name]
+    again = load_palette(params=heavier)
+    assert builds == [52.0] and again.key == first.key  # read from the cache
+    cached.write_bytes(cached.read_bytes()[:5000])  # corrupt it
+    load_palette(params=heavier)
+    assert builds == [52.0, 52.0]
+    assert load_palette(params=heavier).key == first.key and len(builds) == 2
+    with pytest.raises(CacheError, match="no palette matches"):
+        load_palette(params=dataclasses.replace(heavier, body_mass=53.0), build=False)
+
+
+@pytest.mark.slow
+def test_real_rebuild_for_other_parameters(monkeypatch, tmp_path) -> None:
+    monkeypatch.setenv("GRACENAV_CACHE_DIR", str(tmp_path))
+    heavier = dataclasses.replace(BallbotParams(), body_mass=53.0)
+    pal = load_palette(params=heavier, progress=False)
+    assert len(pal) >= 35 and pal.params == heavier
+    assert all(p.report is not None and p.report.passed for p in pal.policies)
+    assert cached_palette_path(pal.key).is_file()
+    t0 = time.perf_counter()
+    again = load_palette(params=heavier, build=False)
+    assert time.perf_counter() - t0 < 1.0
+    assert again.names == pal.names
+    np.testing.assert_array_equal(again.gains.lqr, pal.gains.lqr)
 
 
 def test_edited_content_is_detected(tmp_path) -> None:
     pal = load_palette()
     edited = dataclasses.replace(pal, d=0.25)  # content no longer matches its key
     path = edited.save(tmp_path / "edited.npz")
-    with pytest.raises(CacheError, match="does not match its content"):
+    with pytest.raises(CacheError, match="does not match the inputs stored in it"):
         load_palette(path)
 
 

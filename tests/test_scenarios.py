@@ -17,10 +17,10 @@ from gracenav.cli import main
 from gracenav.execution import EventReason, ExecutionOptions, HybridController, TaskStatus
 from gracenav.graph import build_graph
 from gracenav.library import build_library
-from gracenav.maps import load_map
 from gracenav.palette import load_palette
 from gracenav.scenarios import load_scenario, parse_scenario, run_scenario, write_outputs
 from gracenav.simulate import state_from_position
+from gracenav.world import load_map
 
 SCENARIOS = Path(str(resources.files("gracenav") / "data" / "scenarios"))
 DEG5 = 5.0

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gracenav.maps import Circle, Rectangle, Shape, WorldMap, load_map, save_ros_map
+from gracenav.world import Circle, Rectangle, Shape, WorldMap, load_map, save_ros_map
 
 
 def build() -> WorldMap:

@@ -26,7 +26,9 @@ control laws gracefully composable (φ₁(t_f1) = φ₂(0)) by construction.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import scipy.linalg
@@ -97,12 +99,19 @@ class ControllerGains:
         Feed the friction model forward on the measured ball rate.
     params : BallbotParams
         The (nominal) parameters the gains and the friction compensation use.
+    weights : LQRWeights or None
+        The LQR weights ``lqr`` was designed with by :func:`design_gains`; None for
+        gains given by hand. Together with ``params``, ``max_lean_compensation`` and
+        ``friction_compensation`` these are the controller's *design inputs*
+        (:meth:`design_inputs`), what caches are keyed by: ``lqr`` itself is a
+        LAPACK result whose last bits vary between numpy/scipy builds.
     """
 
     lqr: FloatArray
     params: BallbotParams = field(default_factory=BallbotParams)
     max_lean_compensation: float = float(np.deg2rad(5.0))
     friction_compensation: bool = True
+    weights: LQRWeights | None = None
 
     def __post_init__(self) -> None:
         k = np.array(self.lqr, dtype=float)
@@ -130,6 +139,25 @@ class ControllerGains:
     def tracking_velocity(self) -> FloatArray:
         """k_v = k3/k2 per plane: lean compensation per m/s of error (rad s/m), shape (2,)."""
         return self.lqr[:, 2] / self.lqr[:, 1]
+
+    def design_inputs(self) -> dict[str, Any]:
+        """What the gains are designed from, as plain data (no computed floats).
+
+        Gains given by hand (``weights`` None) have no design; their ``lqr`` is then
+        an input itself and is included as given.
+        """
+        return {
+            "params": self.params.to_dict(),
+            "weights": None if self.weights is None else dataclasses.asdict(self.weights),
+            "lqr": self.lqr.tolist() if self.weights is None else None,
+            "max_lean_compensation": self.max_lean_compensation,
+            "friction_compensation": self.friction_compensation,
+        }
+
+    def relative_difference(self, other: ControllerGains) -> float:
+        """Largest entry of |K − K_other| over the largest entry of |K_other| (per plane)."""
+        scale = np.max(np.abs(other.lqr), axis=1)
+        return float(np.max(np.max(np.abs(self.lqr - other.lqr), axis=1) / scale))
 
     def kernel_arrays(self) -> FloatArray:
         """Pack for the compiled closed loop: rows k_p, k_v, k_φ, k_φ̇ per plane, shape (2, 4)."""
@@ -207,4 +235,5 @@ def design_gains(
         params=params,
         max_lean_compensation=max_lean_compensation,
         friction_compensation=friction_compensation,
+        weights=weights,
     )

@@ -83,6 +83,9 @@ class TaskStatus(enum.Enum):
     TIMEOUT = "timeout"
     FELL = "fell"
     """The lean exceeded the fall limit (``SimulationOptions.fall_lean``)."""
+    #: Consecutive policies ended without advancing time (e.g. every policy whose S
+    #: contains the state leaves its D' at once): the task stops instead of looping.
+    NO_PROGRESS = "no_progress"
 
 
 @dataclass(frozen=True)
@@ -175,7 +178,9 @@ class Episode:
     tree_seconds : tuple of float
         Wall time of every single-goal tree computation (s).
     radius : float
-        Ball radius (m).
+        The plant's ball radius (m): :attr:`position_state` is where the robot truly
+        is, which differs from what the controller believes (its nominal radius) when
+        the plant's radius is not the nominal one.
     """
 
     time: FloatArray
@@ -242,6 +247,11 @@ class Episode:
         ball = self.radius * (acc[:, :2] + acc[:, 2:])
         dt = np.diff(self.time)
         return np.asarray(np.linalg.norm(np.diff(ball, axis=0), axis=1) / dt)
+
+
+#: Policies in a row that may end at their first tick (an instantaneous disturbance at
+#: a switch can do that once) before the task stops with TaskStatus.NO_PROGRESS.
+_MAX_STALLED_SEGMENTS = 8
 
 
 def _segment_disturbances(
@@ -323,7 +333,11 @@ class HybridController:
     criterion : {"time", "distance"}
         Optimality criterion of the trees.
     params : BallbotParams, optional
-        Parameters of the simulated plant (default: the palette's).
+        Parameters of the simulated plant (default: the palette's). They may differ
+        from the controller's nominal parameters (model mismatch): every decision of
+        the hybrid controller (domain membership, references, the goal test) uses the
+        position state the controller *measures*, from the encoder angles and its
+        nominal ball radius, exactly as the compiled closed loop monitors D'(t).
     """
 
     def __init__(
@@ -454,9 +468,7 @@ class HybridController:
         sequence = goal_ids * loops
         goal_states = [np.asarray(g, dtype=float) for g in goals] * loops
         dt = 1.0 / 1024.0
-        # Decisions use the position the controller measures (its own ball radius, as the
-        # compiled loop's domain monitor does); the episode reports the plant's.
-        r = self.gains.params.ball_radius
+        r = self.gains.params.ball_radius  # the controller's (measured) position states
         x = np.asarray(x0, dtype=float).copy()
         p = position_state(x, r)
         k_goal = 0
@@ -478,6 +490,7 @@ class HybridController:
         t = 0.0
         ticks = 0
         max_ticks = max(1, math.ceil(options.max_time / dt - 1e-9))
+        stalled = 0  # consecutive policies that ended at their first tick
         status = TaskStatus.TIMEOUT
         while ticks < max_ticks:
             inst = self.library.policy(current)
@@ -523,11 +536,13 @@ class HybridController:
             if truncated and res.stop_reason is StopReason.COMPLETED:
                 status = TaskStatus.TIMEOUT
                 break
+            stalled = stalled + 1 if last == 0 else 0
+            if stalled > _MAX_STALLED_SEGMENTS:
+                status = TaskStatus.NO_PROGRESS
+                break
             if res.stop_reason is StopReason.DOMAIN_EXIT:
                 reason = EventReason.DOMAIN_EXIT
-                # A policy that exits at its first tick is not followed by another at
-                # once: balancing mode runs first, so every pass of this loop advances.
-                nxt = self.best_policy(p, tree) if last > 0 else -1
+                nxt = self.best_policy(p, tree)
             elif not inst.goal_domain.contains(p):
                 reason = EventReason.NOT_IN_GOAL
                 nxt = self.best_policy(p, tree)

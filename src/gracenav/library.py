@@ -41,10 +41,10 @@ from scipy import sparse
 
 from gracenav.domains import EllipsoidalDomain
 from gracenav.errors import ConfigError, MapError
-from gracenav.maps import WorldMap
 from gracenav.model.indices import PHI, PHI_X_DOT, PHI_Y_DOT
 from gracenav.palette import Palette
 from gracenav.policies import MotionPolicy, PrimitiveKind
+from gracenav.world import WorldMap
 
 __all__ = [
     "DEFAULT_COVERAGE_SAMPLES",
@@ -981,7 +981,7 @@ def _check_inputs(
         raise ConfigError(f"palette must be a Palette, got {type(palette).__name__}")
     if not isinstance(world_map, WorldMap):
         raise ConfigError(
-            f"world_map must be a WorldMap (see gracenav.maps.load_map), got "
+            f"world_map must be a WorldMap (see gracenav.world.load_map), got "
             f"{type(world_map).__name__}"
         )
     if len(palette) == 0:

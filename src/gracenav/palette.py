@@ -2,11 +2,14 @@
 
 A palette file is a single ``.npz`` archive (no pickle) holding a JSON header
 and the sampled primitives of every policy. The header carries a key, a hash
-of everything the palette depends on (robot parameters, controller gains,
-verification options, distance parameter d, file format and code version).
-Loading checks the archive's integrity and the key; a stale, corrupt or
-mismatched file raises :class:`gracenav.errors.CacheError` and is never used.
-Files are written atomically.
+of everything the palette is built from (robot parameters, the controller's
+design inputs, verification options, distance parameter d, primitive set
+options, file format and algorithm version: inputs only, never a computed
+float), and the designed gains, which are compared within a tolerance when
+the palette is loaded. Loading checks the archive's integrity and the key; a
+stale, corrupt or mismatched file is never used: :func:`load_palette` builds
+and caches a matching palette, or raises :class:`gracenav.errors.CacheError`
+for a file the user forced. Files are written atomically.
 """
 
 from __future__ import annotations
@@ -17,15 +20,16 @@ import io
 import json
 import zipfile
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from gracenav._cache import cache_dir
 from gracenav._io import atomic_write_bytes
-from gracenav.control import ControllerGains, design_gains
+from gracenav.control import ControllerGains, LQRWeights, design_gains
 from gracenav.errors import CacheError, ConfigError
 from gracenav.params import BallbotParams
 from gracenav.policies import (
@@ -37,41 +41,64 @@ from gracenav.policies import (
     VerificationOptions,
     VerificationReport,
 )
+from gracenav.primitives import PrimitiveSetOptions
 
 __all__ = [
+    "GAINS_RTOL",
+    "PALETTE_ENV",
     "PALETTE_FORMAT",
     "Palette",
     "build_palette",
+    "build_palette_for",
+    "cached_palette_path",
     "load_palette",
     "palette_key",
     "shipped_palette_path",
 ]
 
-PALETTE_FORMAT = 1
+PALETTE_FORMAT = 2
 #: Primitives are stored at every COARSE_STRIDE-th control tick (1/128 s) and
 #: rebuilt exactly enough (see SampledPrimitive.from_coarse) when loaded.
 COARSE_STRIDE = 8
 #: Bumped whenever the planner, controller or verification code changes results.
 ALGORITHM_VERSION = "1"
+#: Largest relative difference (see ControllerGains.relative_difference) between a
+#: palette's stored gains and the gains requested of it that still counts as the
+#: same design. Rebuilding the gains on another numpy/scipy build changes them by
+#: about 1e-14; any real change of a design input changes them by far more.
+GAINS_RTOL = 1e-8
+#: Environment variable naming a palette file to use instead of the default.
+PALETTE_ENV = "GRACENAV_PALETTE"
 
 
 def palette_key(
-    params: BallbotParams, gains: ControllerGains, options: VerificationOptions, d: float
+    params: BallbotParams,
+    gains: ControllerGains,
+    options: VerificationOptions,
+    d: float,
+    primitive_options: PrimitiveSetOptions | None = None,
 ) -> str:
-    """Hash (hex SHA-256) of everything a palette's content depends on."""
+    """Hash (hex SHA-256) of everything a palette is *built from*.
+
+    The inputs only: robot parameters, the controller's design inputs
+    (:meth:`ControllerGains.design_inputs`: nominal parameters, LQR weights,
+    saturation, friction compensation), verification options, d, the primitive
+    set's options, file format and algorithm version. Never a computed float:
+    the designed gains themselves are stored in the file and compared within
+    :data:`GAINS_RTOL` when the palette is loaded.
+    """
+    primitive_options = (
+        primitive_options if primitive_options is not None else (PrimitiveSetOptions())
+    )
     blob = json.dumps(
         {
             "format": PALETTE_FORMAT,
             "algorithm": ALGORITHM_VERSION,
             "params": params.to_dict(),
-            "gains": {
-                "lqr": np.round(gains.lqr, 12).tolist(),
-                "params": gains.params.to_dict(),
-                "max_lean_compensation": gains.max_lean_compensation,
-                "friction_compensation": gains.friction_compensation,
-            },
+            "controller": gains.design_inputs(),
             "options": dataclasses.asdict(options),
-            "d": d,
+            "primitives": primitive_options.to_dict(),
+            "d": float(d),
         },
         sort_keys=True,
     )
@@ -103,6 +130,8 @@ class Palette:
     options : VerificationOptions
     key : str
         See :func:`palette_key`.
+    primitive_options : PrimitiveSetOptions
+        Options the primitive set Σ(d) was planned with.
     """
 
     policies: tuple[MotionPolicy, ...]
@@ -112,6 +141,7 @@ class Palette:
     params: BallbotParams
     options: VerificationOptions
     key: str
+    primitive_options: PrimitiveSetOptions = field(default_factory=PrimitiveSetOptions)
 
     def __len__(self) -> int:
         return len(self.policies)
@@ -147,9 +177,13 @@ class Palette:
             "d": self.d,
             "params": self.params.to_dict(),
             "options": dataclasses.asdict(self.options),
+            "primitive_options": self.primitive_options.to_dict(),
             "gains": {
                 "lqr": self.gains.lqr.tolist(),
                 "params": self.gains.params.to_dict(),
+                "weights": (
+                    None if self.gains.weights is None else dataclasses.asdict(self.gains.weights)
+                ),
                 "max_lean_compensation": self.gains.max_lean_compensation,
                 "friction_compensation": self.gains.friction_compensation,
             },
@@ -209,8 +243,10 @@ class Palette:
                 params=BallbotParams.from_dict(gp["params"], source=source),
                 max_lean_compensation=float(gp["max_lean_compensation"]),
                 friction_compensation=bool(gp["friction_compensation"]),
+                weights=None if gp["weights"] is None else LQRWeights(**gp["weights"]),
             )
             options = VerificationOptions(**header["options"])
+            primitive_options = PrimitiveSetOptions.from_dict(header["primitive_options"])
             policies = []
             for i, meta in enumerate(header["policies"]):
                 prim = SampledPrimitive.from_coarse(
@@ -251,6 +287,7 @@ class Palette:
                 params=params,
                 options=options,
                 key=str(header["key"]),
+                primitive_options=primitive_options,
             )
         except CacheError:
             raise
@@ -270,35 +307,63 @@ class Palette:
             ) from None
 
     def expected_key(self) -> str:
-        """The key this palette's own content should carry."""
-        return palette_key(self.params, self.gains, self.options, self.d)
+        """The key recomputed from the inputs stored in this palette."""
+        return palette_key(self.params, self.gains, self.options, self.d, self.primitive_options)
 
 
-def load_palette(
-    path: str | Path | None = None,
-    *,
-    params: BallbotParams | None = None,
-    gains: ControllerGains | None = None,
-    options: VerificationOptions | None = None,
-    d: float | None = None,
-) -> Palette:
-    """Load a palette file (default: the one shipped with gracenav) and check its key.
+def _requested_differences(
+    pal: Palette,
+    params: BallbotParams,
+    gains: ControllerGains,
+    options: VerificationOptions,
+    d: float,
+) -> list[str]:
+    """What the inputs stored in ``pal`` and the requested ones differ in, in words."""
 
-    Parameters
-    ----------
-    path : str or Path, optional
-        Palette file; default :func:`shipped_palette_path`.
-    params, gains, options, d : optional
-        What the caller expects the palette to have been built for (default: the
-        defaults of this version of gracenav). A palette built for anything else is
-        refused.
+    def fields(kind: str, have: dict[str, Any], want: dict[str, Any]) -> list[str]:
+        return [
+            f"{kind} {k}: {have.get(k)!r} in the file, {want.get(k)!r} requested"
+            for k in sorted(set(have) | set(want))
+            if have.get(k) != want.get(k)
+        ]
 
-    Raises
-    ------
-    CacheError
-        Missing, corrupt, stale (built by another algorithm version) or mismatched file.
-    """
-    path = Path(path) if path is not None else shipped_palette_path()
+    out = fields("robot parameter", pal.params.to_dict(), params.to_dict())
+    out += fields("controller design", pal.gains.design_inputs(), gains.design_inputs())
+    out += fields(
+        "verification option", dataclasses.asdict(pal.options), dataclasses.asdict(options)
+    )
+    if pal.d != float(d):
+        out.append(f"d: {pal.d!r} m in the file, {float(d)!r} m requested")
+    if pal.primitive_options != PrimitiveSetOptions():
+        out.append("primitive set options other than this version's defaults")
+    if pal.key != palette_key(params, gains, options, d) and not out:
+        out.append("format or algorithm version")
+    return out
+
+
+def _mismatch(
+    pal: Palette,
+    params: BallbotParams,
+    gains: ControllerGains,
+    options: VerificationOptions,
+    d: float,
+) -> str | None:
+    """Why ``pal`` cannot serve the request, or None if it can."""
+    if pal.key != palette_key(params, gains, options, d):
+        return "it was built for " + "; ".join(
+            _requested_differences(pal, params, gains, options, d)
+        )
+    diff = pal.gains.relative_difference(gains)
+    if not diff <= GAINS_RTOL:
+        return (
+            f"its controller gains differ from the requested ones by a relative {diff:.1e} "
+            f"(tolerance {GAINS_RTOL:.0e}): the same design inputs gave other gains"
+        )
+    return None
+
+
+def _read_palette(path: Path) -> Palette:
+    """Read ``path`` and check its key against the inputs stored in it."""
     try:
         data = path.read_bytes()
     except OSError as exc:
@@ -309,21 +374,129 @@ def load_palette(
     pal = Palette.from_bytes(data, source=str(path))
     if pal.key != pal.expected_key():
         raise CacheError(
-            f"{path}: palette key does not match its content (stale or edited file); "
-            "rebuild it with `gracenav palette build`"
+            f"{path}: palette key does not match the inputs stored in it (stale or edited "
+            "file); rebuild it with `gracenav palette build`"
         )
+    return pal
+
+
+def cached_palette_path(key: str) -> Path:
+    """Where the palette with ``key`` (see :func:`palette_key`) is cached."""
+    return cache_dir() / f"palette-{key[:24]}.npz"
+
+
+def load_palette(
+    path: str | Path | None = None,
+    *,
+    params: BallbotParams | None = None,
+    gains: ControllerGains | None = None,
+    options: VerificationOptions | None = None,
+    d: float | None = None,
+    build: bool = True,
+    processes: int | None = None,
+    progress: bool = True,
+) -> Palette:
+    """The palette for the requested robot, controller, verification options and d.
+
+    Without ``path`` (and without ``$GRACENAV_PALETTE``), the palette shipped with
+    gracenav is returned when it was built from the requested inputs; otherwise a
+    matching palette from the user cache (:func:`cached_palette_path`), and when
+    there is none (or it is corrupt) one is built once, with a progress bar, and
+    cached atomically. A palette "matches" when its key (a hash of the inputs,
+    :func:`palette_key`) is the requested one and its stored gains equal the
+    requested gains within a relative :data:`GAINS_RTOL`.
+
+    Parameters
+    ----------
+    path : str or Path, optional
+        Force this palette file (default ``$GRACENAV_PALETTE`` if set). A forced file
+        that does not match the request is an error, never rebuilt.
+    params, gains, options, d : optional
+        What the palette must have been built for (defaults: the CMU ballbot,
+        :func:`gracenav.control.design_gains` on ``params``, default
+        :class:`VerificationOptions`; d: the forced file's, else 0.5 m).
+    build : bool
+        Build a missing palette (False: raise CacheError instead).
+    processes : int, optional
+        Worker processes of a build (default: the number of CPUs, at most 4).
+    progress : bool
+        Show the build's progress bar on a terminal.
+
+    Raises
+    ------
+    CacheError
+        A forced file is missing, corrupt, stale or does not match; or no matching
+        palette exists and ``build`` is False.
+    """
+    import os
+
+    forced = path if path is not None else (os.environ.get(PALETTE_ENV) or None)
     params = params if params is not None else BallbotParams()
     gains = gains if gains is not None else design_gains(params)
     options = options if options is not None else VerificationOptions()
-    d = d if d is not None else pal.d
-    want = palette_key(params, gains, options, d)
-    if pal.key != want:
+    if forced is not None:
+        pal = _read_palette(Path(forced))
+        why = _mismatch(pal, params, gains, options, d if d is not None else pal.d)
+        if why is not None:
+            raise CacheError(
+                f"{forced}: this palette cannot be used: {why}. Leave out --palette / "
+                f"${PALETTE_ENV} to use (or build once) a matching palette, or rebuild this "
+                "file with `gracenav palette build --out FILE`"
+            )
+        return pal
+    d = float(d) if d is not None else 0.5
+    key = palette_key(params, gains, options, d)
+    for candidate in (shipped_palette_path(), cached_palette_path(key)):
+        if not candidate.is_file():
+            continue
+        try:
+            pal = _read_palette(candidate)
+        except CacheError:
+            continue  # a corrupt or stale cache file is rebuilt below
+        if _mismatch(pal, params, gains, options, d) is None:
+            return pal
+    if not build:
         raise CacheError(
-            f"{path}: palette was built for other robot parameters, gains, verification options "
-            f"or d than requested (key {pal.key[:12]} != {want[:12]}); rebuild it with "
-            "`gracenav palette build`"
+            "no palette matches the requested robot parameters, controller, verification "
+            f"options and d = {d} m; build one with `gracenav palette build`"
         )
+    pal = build_palette_for(
+        params=params, gains=gains, options=options, d=d, processes=processes, progress=progress
+    )
+    try:
+        pal.save(cached_palette_path(key))
+    except OSError:
+        pass  # an unwritable cache only costs the rebuild next time
     return pal
+
+
+def build_palette_for(
+    *,
+    params: BallbotParams,
+    gains: ControllerGains,
+    options: VerificationOptions,
+    d: float,
+    processes: int | None = None,
+    progress: bool = True,
+) -> Palette:
+    """Plan the primitive set Σ(d) and build its palette (see :func:`build_palette`)."""
+    import os
+
+    from gracenav.policies import SampledPrimitive
+    from gracenav.primitives import primitive_set
+
+    prims = [SampledPrimitive.from_primitive(p) for p in primitive_set(d=d, params=params)]
+    if processes is None:
+        processes = max(1, min(4, os.cpu_count() or 1))
+    return build_palette(
+        prims,
+        d=d,
+        params=params,
+        gains=gains,
+        options=options,
+        processes=processes,
+        progress=progress,
+    )
 
 
 def _size_one(

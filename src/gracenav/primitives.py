@@ -22,9 +22,9 @@ rotated by 90° (the rotated nonic as the desired flat output, same duration);
 rotations by 180° and 270° negate those two plans. The two plans' ball paths
 differ from exact rotations of each other by a fraction of a millimetre.
 
-The set is cached on disk (``$GRACENAV_CACHE_DIR``, default
-``~/.cache/gracenav``) as one ``.npz`` file (no pickle) per key, the key being
-a hash of the parameters, d, the options and :data:`CODE_VERSION`.
+The set is cached on disk (in :func:`gracenav._cache.cache_dir`) as one ``.npz``
+file (no pickle) per key, the key being a hash of the inputs only (parameters,
+d, the options and :data:`CODE_VERSION`), never of a computed result.
 """
 
 from __future__ import annotations
@@ -34,7 +34,6 @@ import hashlib
 import io
 import json
 import math
-import os
 import zipfile
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
@@ -44,6 +43,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from gracenav._cache import cache_dir
 from gracenav._io import atomic_write_bytes
 from gracenav.errors import CacheError, ConfigError
 from gracenav.params import BallbotParams
@@ -439,8 +439,15 @@ class PrimitiveSetOptions:
             )
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-dict form (for the cache key)."""
+        """Plain-dict form (for cache keys and file headers)."""
         return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> PrimitiveSetOptions:
+        """Inverse of :meth:`to_dict`."""
+        fields = dict(data)
+        fields["planner"] = ShapePlannerOptions(**fields["planner"])
+        return cls(**fields)
 
 
 # Catalogue: (start trim, end trim, (i, j) displacement in units of d).
@@ -663,12 +670,6 @@ def _build(d: float, params: BallbotParams, options: PrimitiveSetOptions) -> Pri
 # --------------------------------------------------------------------------------------
 # Cache
 # --------------------------------------------------------------------------------------
-def cache_dir() -> Path:
-    """Cache directory: ``$GRACENAV_CACHE_DIR`` or ``~/.cache/gracenav``."""
-    env = os.environ.get("GRACENAV_CACHE_DIR")
-    return Path(env) if env else Path.home() / ".cache" / "gracenav"
-
-
 def _cache_key(d: float, params: BallbotParams, options: PrimitiveSetOptions) -> str:
     payload = json.dumps(
         {

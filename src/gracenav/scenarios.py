@@ -424,7 +424,9 @@ def run_scenario(
     params : BallbotParams, optional
         Physical parameters of the simulated robot (default: the palette's); the
         controllers keep the palette's design, so different values test robustness.
-        ``ball_radius`` must be the palette's (positions are measured with it).
+        Each run starts where the controller believes the start is (encoder angles
+        times its nominal ball radius); with another ``ball_radius`` the episode's
+        position states (the plant's) differ from it by the ratio of the radii.
     progress : callable(done, total), optional
         Called after each run.
 
@@ -437,18 +439,13 @@ def run_scenario(
     from gracenav.execution import ExecutionOptions, HybridController
     from gracenav.graph import build_graph
     from gracenav.library import build_library
-    from gracenav.maps import INLINE, load_map
     from gracenav.palette import load_palette
     from gracenav.simulate import state_from_position
+    from gracenav.world import load_map
+    from gracenav.world.occupancy import INLINE
 
     palette = palette if palette is not None else load_palette()
     plant_params = params if params is not None else palette.params
-    if plant_params.ball_radius != palette.params.ball_radius:
-        raise ConfigError(
-            f"the simulated robot's ball_radius ({plant_params.ball_radius:g} m) must be the "
-            f"palette's ({palette.params.ball_radius:g} m): the controllers measure position "
-            "from the ball's rotation with it; the other parameters may differ"
-        )
     try:
         world_map = load_map(scenario.map_source)
     except MapError as exc:
@@ -475,7 +472,7 @@ def run_scenario(
             position_noise_std=scenario.position_noise_std, seed=scenario.seed
         ),
     )
-    radius = plant_params.ball_radius
+    radius = palette.params.ball_radius  # the controller's: the robot starts where it believes
     probe = HybridController(library, graph, criterion=scenario.cost, params=plant_params)
     _check_task(scenario, probe, options)
     episodes = []
@@ -525,7 +522,7 @@ def _check_task(scenario: Scenario, hc: Any, options: Any) -> None:
             raise PlanningError(f"{scenario.source}: '{key}': {exc}") from None
     probe = _replace(options, max_time=1.0 / 1024.0)
     for i, start in enumerate(scenario.starts):
-        x0 = state_from_position(np.asarray(start), hc.params.ball_radius)
+        x0 = state_from_position(np.asarray(start), hc.gains.params.ball_radius)
         try:
             hc.run(x0, scenario.goals, options=probe)
         except PlanningError as exc:

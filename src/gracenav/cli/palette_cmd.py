@@ -32,7 +32,15 @@ def register(sub: Any) -> None:
             "fail are left out and listed. Runs in parallel worker processes."
         ),
     )
-    b.add_argument("--out", type=Path, default=None, help="palette file (default: the shipped one)")
+    b.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help=(
+            "palette file to write (default: the user cache, where every command that "
+            "needs this palette finds it; see $GRACENAV_CACHE_DIR)"
+        ),
+    )
     b.add_argument("--processes", type=int, default=2, help="worker processes (default 2)")
     b.add_argument("--d", type=float, default=0.5, help="distance parameter d (m, default 0.5)")
     b.set_defaults(func=run_build)
@@ -99,19 +107,27 @@ def run_build(args: argparse.Namespace) -> int:
     """Run ``gracenav palette build``."""
     import time
 
+    from gracenav import BallbotParams
+    from gracenav.control import design_gains
     from gracenav.errors import ConfigError
-    from gracenav.palette import build_palette, shipped_palette_path
-    from gracenav.policies import SampledPrimitive
-    from gracenav.primitives import primitive_set
+    from gracenav.palette import build_palette_for, cached_palette_path
+    from gracenav.policies import VerificationOptions
 
     if args.processes < 1:
         raise ConfigError(f"--processes must be >= 1, got {args.processes}")
+    if not args.d > 0:
+        raise ConfigError(f"--d must be positive, got {args.d}")
     t0 = time.perf_counter()
-    prims = [SampledPrimitive.from_primitive(p) for p in primitive_set(d=args.d)]
-    t1 = time.perf_counter()
-    pal = build_palette(prims, d=args.d, processes=args.processes)
+    params = BallbotParams()
+    pal = build_palette_for(
+        params=params,
+        gains=design_gains(params),
+        options=VerificationOptions(),
+        d=args.d,
+        processes=args.processes,
+    )
     t2 = time.perf_counter()
-    out = pal.save(args.out if args.out is not None else shipped_palette_path())
+    out = pal.save(args.out if args.out is not None else cached_palette_path(pal.key))
     print(_table(pal))
     for name, rep in pal.rejected:
         print(
@@ -120,8 +136,8 @@ def run_build(args: argparse.Namespace) -> int:
             f"saturated runs {rep.saturated_runs}"
         )
     print(
-        f"{len(pal)} policies verified, {len(pal.rejected)} rejected; primitives planned in "
-        f"{t1 - t0:.1f} s, policies sized and verified in {t2 - t1:.1f} s; wrote {out}"
+        f"{len(pal)} policies verified, {len(pal.rejected)} rejected, primitives planned and "
+        f"policies sized and verified in {t2 - t0:.1f} s; wrote {out}"
     )
     return 0
 

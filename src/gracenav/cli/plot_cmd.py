@@ -100,10 +100,10 @@ def run_domain(args: argparse.Namespace) -> int:
 def run_library(args: argparse.Namespace) -> int:
     """Run ``gracenav plot library``."""
     from gracenav.library import build_library
-    from gracenav.maps import load_map
     from gracenav.palette import load_palette
     from gracenav.plotting.library import plot_library
     from gracenav.scenarios import MAX_INSTANTIATIONS, estimate_instantiations
+    from gracenav.world import load_map
 
     out = check_figure_path(args.out)
     palette = load_palette()

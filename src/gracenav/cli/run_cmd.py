@@ -9,7 +9,6 @@ from pathlib import Path
 from typing import Any
 
 from gracenav.cli._common import add_params_argument
-from gracenav.errors import ConfigError
 
 __all__ = ["register"]
 
@@ -72,13 +71,6 @@ def _execute(
     if plant is not None:
         sc = dataclasses.replace(sc, plant=plant)  # type: ignore[arg-type]
     params = None if params_path is None else BallbotParams.load_overrides(params_path)
-    nominal = BallbotParams().ball_radius
-    if params is not None and params.ball_radius != nominal:
-        raise ConfigError(
-            f"{params_path}: 'ball_radius' must stay {nominal:g} m for navigation (the "
-            "palette's controllers measure position from the ball's rotation with it); "
-            "the other parameters may differ"
-        )
     with OutputDir(out) as staging:
         with Progress(len(sc.starts), f"{sc.name}: library") as bar:
 

@@ -1,0 +1,133 @@
+"""Coverage of the policy library, by the library's estimate and by brute force.
+
+Coverage is measured on position states (x, y, ẋ, ẏ) with x, y uniform over the
+free positions whose clearance (distance to the nearest obstacle or wall) is at
+least ``footprint + margin`` and (ẋ, ẏ) uniform over the disc |v| <= 0.5 m/s. A
+state is covered when it lies in at least one instantiated start domain S. The
+brute-force count tests every sample against every start domain with the
+ellipsoid inequality, independently of the library's spatial index.
+
+Targets: >= 99 % at margin 0.3 m and >= 90 % at margin 0.1 m on the 5 m room, the
+paper's Fig. 5 map and the cluttered 6 m room; library + graph on the paper-size
+3.5 m area <= 100 ms.
+
+    OPENBLAS_NUM_THREADS=1 python bench/bench_coverage.py [--halvings 1] [--samples 20000]
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from gracenav.graph import build_graph
+from gracenav.library import PolicyLibrary, build_library
+from gracenav.palette import load_palette
+from gracenav.world import WorldMap, load_map
+
+ROOT = Path(__file__).resolve().parent.parent
+MAPS = {
+    "room 5 m, central box": ROOT / "examples" / "maps" / "room_5m_box.yaml",
+    "paper Fig. 5 (scenario map)": ROOT
+    / "src"
+    / "gracenav"
+    / "data"
+    / "scenarios"
+    / "fig5_point_to_point.yaml",
+    "room 6 m, cluttered": ROOT / "examples" / "maps" / "room_6m_cluttered.yaml",
+}
+FOOTPRINT = 0.2
+SPEED = 0.5
+
+
+def sample_states(
+    world: WorldMap, n: int, clearance: float, rng: np.random.Generator
+) -> np.ndarray:
+    """``n`` position states: free positions with clearance >= ``clearance`` (m), velocity
+    uniform on the disc of radius SPEED."""
+    (x0, y0), (x1, y1) = world.bounds
+    got: list[np.ndarray] = []
+    have = 0
+    for _ in range(1000):
+        xy = rng.uniform((x0, y0), (x1, y1), size=(4 * n, 2))
+        xy = xy[world.is_free(xy) & (world.clearance(xy) >= clearance)]
+        got.append(xy)
+        have += xy.shape[0]
+        if have >= n:
+            break
+    xy = np.concatenate(got)[:n]
+    radius = SPEED * np.sqrt(rng.uniform(size=xy.shape[0]))
+    angle = rng.uniform(0.0, 2.0 * np.pi, size=xy.shape[0])
+    v = np.stack([radius * np.cos(angle), radius * np.sin(angle)], axis=1)
+    return np.concatenate([xy, v], axis=1)
+
+
+def brute_force_covered(lib: PolicyLibrary, states: np.ndarray) -> np.ndarray:
+    """Whether each state lies in some start domain, testing every domain (no index)."""
+    covered = np.zeros(states.shape[0], dtype=bool)
+    for i in range(len(lib)):
+        dom = lib.policy(i).start_domain
+        todo = ~covered
+        if not np.any(todo):
+            break
+        covered[todo] |= dom.value(states[todo]) <= 1.0
+    return covered
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--halvings", type=int, default=1, help="lattice halvings (default 1)")
+    ap.add_argument("--samples", type=int, default=20_000, help="states per class")
+    ap.add_argument("--brute", type=int, default=2_000, help="states checked by brute force")
+    args = ap.parse_args()
+    pal = load_palette()
+    rng = np.random.default_rng(0)
+    print(f"palette: {len(pal)} policies; lattice halvings {args.halvings}; |v| <= {SPEED} m/s")
+    header = ("map", "policies", "margin", "library", "brute force", "agree")
+    rows = [header]
+    for name, path in MAPS.items():
+        doc = yaml.safe_load(path.read_text())
+        world = load_map(doc["map"] if "task" in doc else path)
+        lib = build_library(
+            pal, world, footprint_radius=FOOTPRINT, max_halvings=args.halvings, coverage_target=1.0
+        )
+        for label, margin in (("+0.3 m", 0.3), ("+0.1 m", 0.1), ("all free", 0.0)):
+            states = sample_states(world, args.samples, FOOTPRINT + margin, rng)
+            est = float(np.mean(lib.start_domain_covers(states)))
+            sub = states[: args.brute]
+            brute = brute_force_covered(lib, sub)
+            agree = bool(np.array_equal(brute, lib.start_domain_covers(sub)))
+            rows.append(
+                (
+                    name,
+                    str(len(lib)),
+                    label,
+                    f"{100 * est:.1f} %",
+                    f"{100 * np.mean(brute):.1f} % of {sub.shape[0]}",
+                    str(agree),
+                )
+            )
+    free = load_map({"bounds": [[0.0, 0.0], [3.5, 3.5]], "obstacles": []})
+    times = []
+    for _ in range(5):
+        t0 = time.perf_counter()
+        build_graph(build_library(pal, free, max_halvings=0))
+        times.append(time.perf_counter() - t0)
+    widths = [max(len(r[i]) for r in rows) for i in range(len(header))]
+    for r in rows:
+        print("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)))
+    print(
+        f"library + graph, 3.5 m free area, median of 5: {1000 * statistics.median(times):.1f} ms"
+    )
+
+
+if __name__ == "__main__":
+    main()
