@@ -275,6 +275,22 @@ def test_impossible_tasks_and_maps(tmp_path, capsys, patch, message) -> None:
     assert "np.float64" not in err
 
 
+def test_mujoco_plant_without_mujoco(tmp_path, capsys, monkeypatch) -> None:
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(
+        importlib.util, "find_spec", lambda name, *a: None if name == "mujoco" else real(name, *a)
+    )
+    path = write(tmp_path, scenario(**{"simulation.plant": "mujoco"}))
+    status, _, err = cli(["run", str(path), "--out", str(tmp_path / "o")], capsys)
+    assert status == 2 and "simulation.plant mujoco needs the optional" in one_line(err)
+    argv = ["simulate", "balance", "--plant", "mujoco", "--out", str(tmp_path / "o")]
+    status, _, err = cli(argv, capsys)
+    assert status == 2 and "--plant mujoco needs the optional" in one_line(err)
+    assert not (tmp_path / "o").exists()
+
+
 def test_yaml_12_numbers_are_numbers(tmp_path) -> None:
     text = yaml.safe_dump(BASE, sort_keys=False).replace("max_time: 8", "max_time: 8e0")
     assert load_scenario(write(tmp_path, text)).max_time == 8.0

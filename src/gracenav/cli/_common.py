@@ -16,6 +16,7 @@ from gracenav.errors import OutputError
 __all__ = [
     "add_params_argument",
     "check_figure_path",
+    "check_plant",
     "load_params",
     "number",
     "save_figure",
@@ -75,6 +76,19 @@ def load_params(args: argparse.Namespace) -> Any:
 
     path = getattr(args, "params", None)
     return None if path is None else BallbotParams.load_overrides(path)
+
+
+def check_plant(plant: str, where: str = "--plant") -> None:
+    """Refuse the MuJoCo plant up front when its optional dependency is missing."""
+    import importlib.util
+
+    from gracenav.errors import ConfigError
+
+    if plant == "mujoco" and importlib.util.find_spec("mujoco") is None:
+        raise ConfigError(
+            f"{where} mujoco needs the optional dependency mujoco: "
+            "pip install 'gracenav[mujoco]', or use the model3d plant"
+        )
 
 
 def supported_figure_formats() -> dict[str, str]:

@@ -8,7 +8,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from gracenav.cli._common import add_params_argument
+from gracenav.cli._common import add_params_argument, check_plant
 
 __all__ = ["register"]
 
@@ -70,6 +70,7 @@ def _execute(
     sc = load_scenario(scenario_path)
     if plant is not None:
         sc = dataclasses.replace(sc, plant=plant)  # type: ignore[arg-type]
+    check_plant(sc.plant, "--plant" if plant is not None else f"{sc.source}: simulation.plant")
     params = None if params_path is None else BallbotParams.load_overrides(params_path)
     with OutputDir(out) as staging:
         with Progress(len(sc.starts), f"{sc.name}: library") as bar:

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from gracenav.cli._common import add_params_argument, load_params, number
+from gracenav.cli._common import add_params_argument, check_plant, load_params, number
 from gracenav.errors import ConfigError
 
 __all__ = ["register"]
@@ -109,6 +109,7 @@ def run_balance(args: argparse.Namespace) -> int:
         if args.duration <= 1.0:
             raise ConfigError("--push needs --duration longer than 1 s (the push is at t = 1 s)")
         disturbances.append(Push(time=1.0, impulse=(args.push[0], args.push[1])))
+    check_plant(args.plant)
     loaded = load_params(args)
     params = loaded if loaded is not None else BallbotParams()
     options = SimulationOptions()
