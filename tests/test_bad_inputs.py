@@ -481,8 +481,10 @@ def test_partial_params_file_is_valid(tmp_path, capsys) -> None:
 # -- outputs -------------------------------------------------------------------------------
 
 
-def test_out_is_checked_before_any_simulation(tmp_path, capsys) -> None:
+def test_out_is_checked_before_any_simulation(tmp_path, capsys, monkeypatch) -> None:
     path = write(tmp_path, BASE)
+    (tmp_path / "cwd").mkdir()
+    monkeypatch.chdir(tmp_path / "cwd")  # empty: only the rule protects it
     afile = tmp_path / "afile"
     afile.write_text("keep")
     foreign = tmp_path / "foreign"
@@ -493,6 +495,8 @@ def test_out_is_checked_before_any_simulation(tmp_path, capsys) -> None:
         (afile / "sub", "is a file, not a directory"),
         (foreign, "holds files gracenav did not write (notes.txt)"),
         (Path("/sys/gracenav-out"), "cannot write in /sys"),
+        (Path("."), "is the current directory or holds it"),
+        (Path(".."), "is the current directory or holds it"),
     ]
     for out, message in cases:
         t0 = time.perf_counter()

@@ -203,7 +203,7 @@ OUTPUT_NAMES = frozenset(
 anything else is not replaced."""
 
 
-def glob_escape(name: str) -> str:
+def _glob_escape(name: str) -> str:
     """``name`` with glob metacharacters escaped."""
     import glob
 
@@ -245,8 +245,15 @@ def check_output_dir(path: str | Path, flag: str = "--out") -> Path:
     from gracenav.errors import OutputError
 
     path = Path(path)
-    if str(path).strip() == "":
-        raise OutputError(f"{flag} must name a directory, got an empty path")
+    try:
+        here: Path | None = Path.cwd().resolve()
+    except OSError:  # no current directory: nothing to protect
+        here = None
+    if here is not None and path.resolve() in (here, *here.parents):
+        raise OutputError(
+            f"{flag} {path} is the current directory or holds it; give a directory "
+            "of its own, e.g. out/run1 (it is replaced as a whole)"
+        )
     if path.exists() or path.is_symlink():
         if not path.is_dir():
             raise OutputError(f"{flag} {path} exists and is not a directory; give a directory")
@@ -289,7 +296,9 @@ class OutputDir:
     """
 
     def __init__(self, path: str | Path, flag: str = "--out") -> None:
-        self.path = check_output_dir(path, flag)
+        # Absolute and normalised ('a/../b'), so that the lock and the staging
+        # directory are siblings of the directory itself.
+        self.path = Path(os.path.abspath(check_output_dir(path, flag)))
         self.flag = flag
         self.staging = Path()
         self._lock_fd = -1
@@ -339,6 +348,8 @@ class OutputDir:
             self._lock_fd = -1
 
     def __enter__(self) -> OutputDir:
+        from gracenav.errors import OutputError
+
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -353,6 +364,9 @@ class OutputDir:
             umask = os.umask(0)
             os.umask(umask)
             os.chmod(self.staging, 0o777 & ~umask)
+        except OutputError:
+            self._cleanup()
+            raise
         except OSError as exc:
             self._cleanup()
             raise self._fail(f"write in {self.path.parent}", exc) from None
@@ -378,12 +392,12 @@ class OutputDir:
         import shutil
 
         parent, name = self.path.parent, self.path.name
-        for old in sorted(parent.glob(f".{glob_escape(name)}.old-*")):
+        for old in sorted(parent.glob(f".{_glob_escape(name)}.old-*")):
             previous = old / "previous"
             if previous.is_dir() and not (self.path.exists() or self.path.is_symlink()):
                 os.replace(previous, self.path)
             shutil.rmtree(old, ignore_errors=True)
-        for tmp in parent.glob(f".{glob_escape(name)}.tmp-*"):
+        for tmp in parent.glob(f".{_glob_escape(name)}.tmp-*"):
             shutil.rmtree(tmp, ignore_errors=True)
 
     def _publish(self) -> None:
