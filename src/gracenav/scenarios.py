@@ -325,11 +325,11 @@ def check_scenario(scenario: Scenario, world_map: Any, palette: Any) -> None:
         need = scenario.loops * len(scenario.goals) * shortest
         if need > scenario.max_time:
             fit = int(scenario.max_time // (len(scenario.goals) * shortest))
+            hint = f"use loops <= {fit} or raise max_time" if fit else "raise max_time"
             raise ConfigError(
                 f"{src}: 'task.loops' {scenario.loops} loops of {len(scenario.goals)} goal(s) "
                 f"need at least {need:.3g} s (every policy lasts >= {shortest:g} s), more than "
-                f"simulation.max_time = {scenario.max_time:g} s; use loops <= {max(fit, 1)} or "
-                "raise max_time"
+                f"simulation.max_time = {scenario.max_time:g} s; {hint}"
             )
     footprint = scenario.footprint_radius
     named = [(f"task.starts[{i}]", s) for i, s in enumerate(scenario.starts)]
