@@ -358,9 +358,10 @@ class OutputDir:
         try:
             self._recover()
             check_output_dir(self.path, self.flag)  # again, now that we hold the lock
-            self.staging = Path(
-                tempfile.mkdtemp(prefix=f".{self.path.name}.tmp-", dir=self.path.parent)
-            )
+            with _blocked_signals():  # no interrupt between creating and recording it
+                self.staging = Path(
+                    tempfile.mkdtemp(prefix=f".{self.path.name}.tmp-", dir=self.path.parent)
+                )
             umask = os.umask(0)
             os.umask(umask)
             os.chmod(self.staging, 0o777 & ~umask)
@@ -378,11 +379,12 @@ class OutputDir:
     def _cleanup(self) -> None:
         import shutil
 
-        try:
-            if self.staging != Path() and self.staging.exists():
-                shutil.rmtree(self.staging, ignore_errors=True)
-        finally:
-            self._unlock()
+        with _blocked_signals():  # a second Ctrl-C must not leave half a directory
+            try:
+                if self.staging != Path() and self.staging.exists():
+                    shutil.rmtree(self.staging, ignore_errors=True)
+            finally:
+                self._unlock()
 
     def _recover(self) -> None:
         """Clean up after a run that was killed outright (SIGKILL, power loss): restore
