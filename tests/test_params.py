@@ -96,5 +96,5 @@ def test_unreadable_and_malformed_files(tmp_path) -> None:
         BallbotParams.load(bad)
     lst = tmp_path / "list.yaml"
     lst.write_text("- 1\n- 2\n")
-    with pytest.raises(ConfigError, match="expected a mapping"):
+    with pytest.raises(ConfigError, match="expected a mapping of parameter keys"):
         BallbotParams.load(lst)

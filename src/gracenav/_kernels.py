@@ -4,6 +4,10 @@ Everything here works on plain float64 arrays so that one compiled loop can
 run a single closed-loop simulation or a batch of them; the public, typed
 interface is :mod:`gracenav.simulate` and :mod:`gracenav.model`.
 
+Kernels use numpy's floating-point error model: a division by zero (a singular mass
+matrix of non-physical parameters) gives inf or NaN, which the closed loop reports as a
+fall, instead of raising inside compiled code.
+
 Array conventions: state x = [θ_x, θ_y, φ_x, φ_y, θ̇_x, θ̇_y, φ̇_x, φ̇_y];
 model constants ``c`` as ``Ballbot3D.constants()``; friction constants
 ``fr = [D_c, D_v, ε]``; controller gains ``k`` (2, 4) with rows
@@ -24,19 +28,19 @@ __all__ = [
     "mass_matrix",
 ]
 
-mass_matrix = njit(cache=True)(_gen.mass_matrix)
-bias = njit(cache=True)(_gen.bias)
-com_jacobian = njit(cache=True)(_gen.com_jacobian)
-com_position = njit(cache=True)(_gen.com_position)
+mass_matrix = njit(cache=True, error_model="numpy")(_gen.mass_matrix)
+bias = njit(cache=True, error_model="numpy")(_gen.bias)
+com_jacobian = njit(cache=True, error_model="numpy")(_gen.com_jacobian)
+com_position = njit(cache=True, error_model="numpy")(_gen.com_position)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def friction(fr, thd):
     """Smooth friction torque D_c tanh(θ̇/ε) + D_v θ̇ (N m)."""
     return fr[0] * np.tanh(thd / fr[2]) + fr[1] * thd
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def solve_spd(m, b, out):
     """Solve m @ out = b for a small symmetric positive definite m (Cholesky, in place)."""
     n = b.shape[0]
@@ -62,7 +66,7 @@ def solve_spd(m, b, out):
         out[i] = s / m[i, i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def dynamics(c, fr, x, tau, force, wm, wh, wj, wr, xdot):
     """State derivative of the 3D model with drive torque ``tau`` (2,) and a world force
     ``force`` (3,) on the body centre of mass. ``wm`` (4,4), ``wh`` (4,), ``wj`` (3,4),
@@ -81,7 +85,7 @@ def dynamics(c, fr, x, tau, force, wm, wh, wj, wr, xdot):
     solve_spd(wm, wr, xdot[4:])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def control_law(r, fr, k, max_comp, friction_comp, x, meas_noise, x_ref, tau_ff, out):
     """Fig. 2 cascade for both planes; writes the (unsaturated) torque to ``out`` (2,).
 
@@ -103,7 +107,7 @@ def control_law(r, fr, k, max_comp, friction_comp, x, meas_noise, x_ref, tau_ff,
         out[i] = tau
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _rk4(c, fr, x, tau, force, h, wm, wh, wj, wr, k1, k2, k3, k4, xt):
     dynamics(c, fr, x, tau, force, wm, wh, wj, wr, k1)
     for i in range(8):
@@ -119,7 +123,7 @@ def _rk4(c, fr, x, tau, force, h, wm, wh, wj, wr, k1, k2, k3, k4, xt):
         x[i] += h * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]) / 6.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def closed_loop(
     c_plant,
     fr_plant,
@@ -143,6 +147,7 @@ def closed_loop(
     domain_center,
     domain_shape,
     stop_on_exit,
+    fall_lean,
     record,
     states_out,
     inputs_out,
@@ -158,10 +163,12 @@ def closed_loop(
     [active, v_x, v_y]: while active a horizontal damper, tether_gains[0]
     (N s/m), drags the body COM toward the velocity (v_x, v_y); domain_center
     (T+1, 4) and domain_shape (T+1, 4, 4) the monitored outer domain D'(t) (pass
-    zero-size arrays for none); states_out (B, T+1, 8) and inputs_out (B, T+1, 2)
-    when ``record``; summary_out (B, 6): [last tick reached, max |lean| (rad),
-    max |τ| commanded (N m), max D'(t) value, saturated ticks, exit tick or -1];
-    final_out (B, 8) the state at the last tick reached.
+    zero-size arrays for none); a run stops at the first tick where |φ_x| or |φ_y|
+    exceeds ``fall_lean`` (rad) or is not finite (a fall); states_out (B, T+1, 8)
+    and inputs_out (B, T+1, 2) when ``record``; summary_out (B, 7): [last tick
+    reached, max |lean| (rad), max |τ| commanded (N m), max D'(t) value, saturated
+    ticks, exit tick or -1, fall tick or -1]; final_out (B, 8) the state at the last
+    tick reached.
     """
     nb = x0.shape[0]
     nt = x_ref.shape[0] - 1
@@ -195,6 +202,7 @@ def closed_loop(
         max_dom = 0.0
         saturated = 0
         exit_tick = -1
+        fall_tick = -1
         last = nt
         for n in range(nt + 1):
             if use_jump:
@@ -231,6 +239,8 @@ def closed_loop(
                 a = abs(x[2 + i])
                 if a > max_lean:
                     max_lean = a
+                if not a <= fall_lean and fall_tick < 0:
+                    fall_tick = n
             if monitor:
                 for i in range(2):
                     pv[i] = r * (x[i] + x[2 + i]) - domain_center[n, i]
@@ -248,7 +258,7 @@ def closed_loop(
                     states_out[b, n, i] = x[i]
                 inputs_out[b, n, 0] = tau[0]
                 inputs_out[b, n, 1] = tau[1]
-            if (exit_tick >= 0 and stop_on_exit) or n == nt:
+            if (exit_tick >= 0 and stop_on_exit) or fall_tick >= 0 or n == nt:
                 last = n
                 break
             if use_force:
@@ -277,5 +287,6 @@ def closed_loop(
         summary_out[b, 3] = max_dom
         summary_out[b, 4] = saturated
         summary_out[b, 5] = exit_tick
+        summary_out[b, 6] = fall_tick
         for i in range(8):
             final_out[b, i] = x[i]

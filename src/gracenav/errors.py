@@ -13,6 +13,7 @@ __all__ = [
     "ConfigError",
     "GracenavError",
     "MapError",
+    "OutputError",
     "PlanningError",
     "VerificationError",
 ]
@@ -40,3 +41,8 @@ class PlanningError(GracenavError, RuntimeError):
 
 class VerificationError(GracenavError, RuntimeError):
     """A motion policy failed verification."""
+
+
+class OutputError(GracenavError, OSError):
+    """An output location cannot be used: it is a file, cannot be written, or another
+    run is writing to it."""

@@ -14,6 +14,7 @@ non-graceful switches are these recoveries.
 from __future__ import annotations
 
 import enum
+import math
 import time as _time
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
@@ -80,6 +81,8 @@ class TaskStatus(enum.Enum):
     LOOPS_COMPLETED = "loops_completed"
     NO_POLICY = "no_policy"
     TIMEOUT = "timeout"
+    FELL = "fell"
+    """The lean exceeded the fall limit (``SimulationOptions.fall_lean``)."""
     #: Consecutive policies ended without advancing time (e.g. every policy whose S
     #: contains the state leaves its D' at once): the task stops instead of looping.
     NO_PROGRESS = "no_progress"
@@ -116,7 +119,8 @@ class ExecutionOptions:
     plant : {"model3d", "mujoco"}
         Simulated plant.
     max_time : float
-        Give up after this simulated time (s).
+        Give up after this simulated time (s), even in the middle of a policy: a task
+        never runs past it by more than one control tick.
     goal_tolerance : float
         A point-to-point task ends when, after the goal policy, the ball is within
         this distance (m) of the goal and slower than this speed (m/s); until then the
@@ -130,7 +134,8 @@ class ExecutionOptions:
         Resume the task from balancing mode once a start domain contains the state (a
         gracenav extension: the paper assumes 100 % coverage and stops the task).
     simulation : SimulationOptions
-        Integration substeps and sensor noise.
+        Integration substeps, sensor noise and the fall limit (a fall ends the task
+        with :attr:`TaskStatus.FELL`).
     """
 
     plant: Literal["model3d", "mujoco"] = "model3d"
@@ -481,16 +486,18 @@ class HybridController:
                 if hits.nnz == 0
                 else "the goal cannot be reached from any policy whose start domain contains it"
             )
-            raise PlanningError(f"start {tuple(np.round(p, 3))}: {why}")
+            where = ", ".join(f"{v:.3g}" for v in p)
+            raise PlanningError(f"start ({where}): {why}")
         record = _Recorder()
         events = [SwitchEvent(0.0, -1, current, EventReason.START, 0)]
         goals_reached: list[tuple[float, int]] = []
         applied: set[int] = set()
         t = 0.0
         ticks = 0
+        max_ticks = max(1, math.ceil(options.max_time / dt - 1e-9))
         stalled = 0  # consecutive policies that ended at their first tick
         status = TaskStatus.TIMEOUT
-        while True:
+        while ticks < max_ticks:
             inst = self.library.policy(current)
             prim = inst.policy.primitive
             ref, ref_pos = instantiated_reference(prim, inst.orientation, inst.start_xy, r)
@@ -502,7 +509,12 @@ class HybridController:
                 # Regenerate the tree for the next goal while the last policy to the
                 # current goal runs (paper Sec. V-C).
                 self.tree(sequence[k_goal + 1])
-            local, inst_idx = _segment_disturbances(disturbances, t, dt, prim.num_ticks, applied)
+            n_seg = min(prim.num_ticks, max_ticks - ticks)
+            truncated = n_seg < prim.num_ticks
+            if truncated:  # max_time falls inside this policy: run up to it only
+                ref = Reference(ref.states[: n_seg + 1], ref.inputs[: n_seg + 1], ref.dt)
+                ref_pos, shapes = ref_pos[: n_seg + 1], shapes[: n_seg + 1]
+            local, inst_idx = _segment_disturbances(disturbances, t, dt, n_seg, applied)
             res = simulate(
                 x,
                 ref,
@@ -523,6 +535,12 @@ class HybridController:
             ticks += last
             x = res.states[-1].copy()
             p = position_state(x, r)
+            if res.stop_reason is StopReason.FELL:
+                status = TaskStatus.FELL
+                break
+            if truncated and res.stop_reason is StopReason.COMPLETED:
+                status = TaskStatus.TIMEOUT
+                break
             stalled = stalled + 1 if last == 0 else 0
             if stalled > _MAX_STALLED_SEGMENTS:
                 status = TaskStatus.NO_PROGRESS
@@ -561,7 +579,7 @@ class HybridController:
                 if nxt < 0 or not self.library.policy(nxt).start_domain.contains(p):
                     nxt = self.best_policy(p, tree)
                     reason = EventReason.NOT_IN_GOAL
-            if t >= options.max_time:
+            if ticks >= max_ticks:
                 status = TaskStatus.TIMEOUT
                 break
             if nxt < 0:
@@ -573,8 +591,13 @@ class HybridController:
                 hold_xy = self._recovery_point(p, tree)
                 waited = 0.0
                 nxt = -1
-                while waited < options.balance_time - 1e-9:
-                    chunk = min(options.balance_chunk, options.balance_time - waited)
+                fell = False
+                while waited < options.balance_time - 1e-9 and ticks < max_ticks:
+                    chunk = min(
+                        options.balance_chunk,
+                        options.balance_time - waited,
+                        (max_ticks - ticks) * dt,
+                    )
                     hold = Reference.hold(hold_xy, chunk, params=self.gains.params)
                     local, inst_idx = _segment_disturbances(
                         disturbances, t, dt, hold.num_ticks, applied
@@ -598,12 +621,22 @@ class HybridController:
                     waited += n * dt
                     x = bal.states[-1].copy()
                     p = position_state(x, r)
+                    if bal.stop_reason is StopReason.FELL:
+                        fell = True
+                        break
                     if options.resume_from_balancing and not _disturbed(disturbances, t):
                         nxt = self.best_policy(p, tree)
                         if nxt >= 0:
                             break
+                if fell:
+                    status = TaskStatus.FELL
+                    break
                 if nxt < 0:
-                    status = TaskStatus.NO_POLICY
+                    status = (
+                        TaskStatus.TIMEOUT
+                        if waited < options.balance_time - 1e-9
+                        else TaskStatus.NO_POLICY
+                    )
                     break
                 events.append(SwitchEvent(t, -1, nxt, EventReason.RECOVERED, ticks))
                 current = nxt

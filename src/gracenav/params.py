@@ -14,7 +14,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from gracenav._io import atomic_write_text, yaml_error_message
+from gracenav._io import atomic_write_text, load_document
+from gracenav._validate import require_mapping
 from gracenav.errors import ConfigError
 
 __all__ = ["BallbotParams"]
@@ -148,8 +149,18 @@ class BallbotParams:
         return dataclasses.asdict(self)
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any], *, source: str = "parameters") -> BallbotParams:
-        """Build parameters from a mapping; every field must be given.
+    def from_dict(
+        cls,
+        data: Mapping[str, Any],
+        *,
+        source: str = "parameters",
+        base: BallbotParams | None = None,
+    ) -> BallbotParams:
+        """Build parameters from a mapping.
+
+        Without ``base`` every field must be given; with ``base`` the mapping may set any
+        subset of the fields (overrides; e.g. only ``body_mass``) and the others are
+        ``base``'s. Unknown names are errors either way.
 
         Raises
         ------
@@ -157,39 +168,45 @@ class BallbotParams:
             On unknown keys, missing keys or non-physical values; the message
             names the field and ``source``.
         """
-        if not isinstance(data, Mapping):
-            raise ConfigError(f"{source}: expected a mapping of parameter names to values")
         names = [f.name for f in dataclasses.fields(cls)]
-        unknown = sorted(set(data) - set(names))
+        data = require_mapping(data, source, "parameter", [*names[:3], "..."])
+        unknown = sorted(str(k) for k in data if k not in names)
         if unknown:
             raise ConfigError(
-                f"{source}: unknown parameter(s) {', '.join(map(str, unknown))}; "
-                f"known: {', '.join(names)}"
+                f"{source}: unknown parameter(s) {', '.join(unknown)}; known: {', '.join(names)}"
             )
-        missing = [n for n in names if n not in data]
-        if missing:
-            raise ConfigError(f"{source}: missing parameter(s) {', '.join(missing)}")
+        if base is None:
+            missing = [n for n in names if n not in data]
+            if missing:
+                raise ConfigError(
+                    f"{source}: missing parameter(s) {', '.join(missing)} (a partial file "
+                    "overrides the defaults only where the defaults are given as a base)"
+                )
+        values = base.to_dict() if base is not None else {}
+        values.update({n: data[n] for n in names if n in data})
         try:
-            return cls(**{n: data[n] for n in names})
+            return cls(**values)
         except ConfigError as exc:
             raise ConfigError(f"{source}: {exc}") from None
 
     @classmethod
-    def load(cls, path: str | Path) -> BallbotParams:
-        """Load parameters from a YAML (``.yaml``/``.yml``) or JSON file."""
-        import yaml
+    def load(cls, path: str | Path, *, base: BallbotParams | None = None) -> BallbotParams:
+        """Load parameters from a YAML (``.yaml``/``.yml``) or JSON (``.json``) file.
 
+        The file is read strictly (UTF-8, no duplicate keys). With ``base`` it may set
+        only some fields, which override ``base`` (see :meth:`from_dict`).
+        """
         path = Path(path)
-        try:
-            text = path.read_text()
-        except OSError as exc:
-            raise ConfigError(f"cannot read parameter file {path}: {exc.strerror}") from None
-        try:
-            data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
-        except (json.JSONDecodeError, yaml.YAMLError) as exc:
-            detail = str(exc) if isinstance(exc, json.JSONDecodeError) else yaml_error_message(exc)
-            raise ConfigError(f"{path}: not valid {path.suffix[1:] or 'YAML'}: {detail}") from None
-        return cls.from_dict(data, source=str(path))
+        data = load_document(path, "parameter file")
+        return cls.from_dict(data, source=str(path), base=base)
+
+    @classmethod
+    def load_overrides(cls, path: str | Path) -> BallbotParams:
+        """The CMU ballbot's parameters with the fields set in ``path`` replaced.
+
+        A file that sets only ``body_mass: 60.0`` is valid; unknown names are errors.
+        """
+        return cls.load(path, base=cls())
 
     def save(self, path: str | Path) -> None:
         """Write parameters atomically as YAML or JSON (chosen by the suffix)."""

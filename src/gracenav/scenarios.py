@@ -19,8 +19,10 @@ A scenario file (YAML) has these keys (SI units; positions in m, velocities in m
       - {kind: drag, start_time: 3, end_time: 5, velocity: [0, -0.3]}     # held and moved
     simulation: {plant: model3d, seed: 0, position_noise_std: 0.0, max_time: 120}
 
-Unknown keys and values of the wrong type raise :class:`gracenav.errors.ConfigError`
-naming the key and the file.
+The file is UTF-8 YAML without duplicate keys. Unknown keys, values of the wrong type
+and values beyond the limits below (``MAX_*``: runs, loops, simulated time, library size)
+raise :class:`gracenav.errors.ConfigError` naming the file and the key path, before any
+heavy work.
 """
 
 from __future__ import annotations
@@ -28,28 +30,31 @@ from __future__ import annotations
 import json
 import math
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 
-from gracenav._io import atomic_write_text, yaml_error_message
+from gracenav._io import atomic_write_text, load_document
+from gracenav._validate import Fields, require_mapping
 from gracenav.errors import ConfigError
+from gracenav.params import BallbotParams
 from gracenav.simulate import Disturbance, Drag, Push, SimulationOptions
 
 __all__ = [
     "RunSummary",
     "Scenario",
     "ScenarioResult",
+    "check_scenario",
+    "estimate_instantiations",
     "load_scenario",
     "parse_scenario",
     "run_scenario",
+    "summary_dict",
     "write_outputs",
 ]
-
-_TOP = {"name", "map", "robot", "planner", "task", "disturbances", "simulation"}
 
 
 @dataclass(frozen=True)
@@ -99,152 +104,140 @@ class Scenario:
     source: str = "scenario"
 
 
-class _Reader:
-    """Typed access to a mapping with error messages that name the key and the file."""
+_TOP = ("name", "map", "robot", "planner", "task", "disturbances", "simulation")
 
-    def __init__(self, data: Any, where: str, source: str) -> None:
-        if not isinstance(data, Mapping):
-            raise ConfigError(f"{source}: '{where}' must be a mapping, got {type(data).__name__}")
-        self.data = data
-        self.where = where
-        self.source = source
-
-    def _key(self, key: str) -> str:
-        return f"{self.where}.{key}" if self.where else key
-
-    def check_keys(self, allowed: set[str]) -> None:
-        unknown = sorted(str(k) for k in set(self.data) - allowed)
-        if unknown:
-            raise ConfigError(
-                f"{self.source}: unknown key(s) {', '.join(self._key(k) for k in unknown)}; "
-                f"allowed: {', '.join(sorted(allowed))}"
-            )
-
-    def get(self, key: str, default: Any = ...) -> Any:
-        if key not in self.data:
-            if default is ...:
-                raise ConfigError(f"{self.source}: missing key '{self._key(key)}'")
-            return default
-        return self.data[key]
-
-    def number(self, key: str, default: Any = ..., *, positive: bool = False) -> float:
-        v = self.get(key, default)
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise ConfigError(f"{self.source}: '{self._key(key)}' must be a number, got {v!r}")
-        if positive and not v > 0:
-            raise ConfigError(f"{self.source}: '{self._key(key)}' must be positive, got {v!r}")
-        return float(v)
-
-    def integer(self, key: str, default: Any = ..., *, minimum: int = 0) -> int:
-        v = self.get(key, default)
-        if isinstance(v, bool) or not isinstance(v, int) or v < minimum:
-            raise ConfigError(
-                f"{self.source}: '{self._key(key)}' must be an integer >= {minimum}, got {v!r}"
-            )
-        return int(v)
-
-    def choice(self, key: str, options: Sequence[str], default: Any = ...) -> str:
-        v = self.get(key, default)
-        if v not in options:
-            raise ConfigError(
-                f"{self.source}: '{self._key(key)}' must be one of {', '.join(options)}, got {v!r}"
-            )
-        return str(v)
-
-    def vector(self, key: str, n: int, value: Any = ...) -> tuple[float, ...]:
-        v = self.get(key) if value is ... else value
-        ok = isinstance(v, (list, tuple)) and len(v) == n
-        ok = ok and all(
-            not isinstance(e, bool) and isinstance(e, (int, float)) and math.isfinite(e) for e in v
-        )
-        if not ok:
-            raise ConfigError(
-                f"{self.source}: '{self._key(key)}' must be a list of {n} numbers, got {v!r}"
-            )
-        return tuple(float(e) for e in v)
-
-    def sub(self, key: str, default: Any = ...) -> _Reader:
-        return _Reader(self.get(key, default), self._key(key), self.source)
+# -- limits ----------------------------------------------------------------------------
+# Every number of a scenario is checked against these before any heavy work, so that a
+# typo (an extra zero, a wrong unit) is refused with an estimate instead of running for
+# hours or exhausting memory.
+MAX_STARTS = 100
+"""Most runs (starts) of one point-to-point scenario."""
+MAX_GOALS = 100
+"""Most goals of one surveillance loop."""
+MAX_LOOPS = 10_000
+"""Most surveillance loops."""
+MAX_DISTURBANCES = 100
+"""Most disturbances of one scenario."""
+MAX_SIMULATED_TIME_S = 1800.0
+"""Budget of simulated time over all runs, max_time × starts (s): 1.8 M control ticks,
+about 250 MB of recorded history and a few minutes of computing."""
+MAX_INSTANTIATIONS = 2_000_000
+"""Budget of policy instantiations tried by the library over all halvings (lattice
+points × orientations × palette policies): the 50 m × 50 m office at one pass tries
+1.56 M (≈2 s, ≈330 MiB)."""
+MAX_COORDINATE = 1.0e4
+"""Largest |entry| of a start or goal state (m, m/s)."""
+MAX_IMPULSE_NS = 1000.0
+"""Largest push impulse per axis (N s); the robot falls from far less (README)."""
+MAX_DRAG_SPEED_MPS = 10.0
+"""Largest drag velocity per axis (m/s)."""
+MAX_FOOTPRINT_M = 5.0
+"""Largest footprint radius (m)."""
+MAX_NOISE_STD_M = 1.0
+"""Largest position noise standard deviation (m)."""
 
 
 def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = None) -> Scenario:
     """Validate a scenario mapping (as loaded from YAML) and build a :class:`Scenario`.
 
-    ``base`` is the folder relative to which ``map.ros_map`` is resolved.
+    ``base`` is the folder relative to which ``map.ros_map`` is resolved. Values are
+    checked against the module's limits (``MAX_*``).
+
+    Raises
+    ------
+    ConfigError
+        Naming ``source`` and the key path of the first invalid value.
     """
-    top = _Reader(data, "", source)
+    require_mapping(data, source, "scenario", _TOP)
+    top = Fields(data, "", source)
     top.check_keys(_TOP)
-    name = top.get("name")
-    if not isinstance(name, str) or not name:
-        raise ConfigError(f"{source}: 'name' must be a non-empty string, got {name!r}")
+    name = top.string("name")
     mp = top.sub("map")
     map_source: dict[str, Any] | Path
     if "ros_map" in mp.data:
         mp.check_keys({"ros_map"})
-        rel = mp.get("ros_map")
-        if not isinstance(rel, str):
-            raise ConfigError(f"{source}: 'map.ros_map' must be a file path, got {rel!r}")
+        rel = mp.string("ros_map", max_length=4096)
         map_source = (base or Path(".")) / rel
     else:
-        map_source = dict(mp.data)
+        map_source = dict(mp.data)  # checked by the map loader (size limit included)
     robot = top.sub("robot", {})
     robot.check_keys({"footprint_radius"})
-    footprint = robot.number("footprint_radius", 0.2)
-    if footprint < 0:
-        raise ConfigError(f"{source}: 'robot.footprint_radius' must be >= 0, got {footprint!r}")
+    footprint = robot.number(
+        "footprint_radius", 0.2, minimum=0.0, maximum=MAX_FOOTPRINT_M, unit="m"
+    )
     planner = top.sub("planner", {})
     planner.check_keys({"cost", "max_halvings"})
     cost = planner.choice("cost", ("time", "distance"), "time")
-    halvings = planner.integer("max_halvings", 1)
-    task = top.sub("task")
-    kind = task.choice("kind", ("point_to_point", "surveillance"))
-    if kind == "point_to_point":
-        task.check_keys({"kind", "goal", "starts"})
-        goals: tuple[tuple[float, ...], ...] = (task.vector("goal", 4),)
-        starts_raw = task.get("starts")
-        if not isinstance(starts_raw, list) or not starts_raw:
-            raise ConfigError(
-                f"{source}: 'task.starts' must be a non-empty list of [x, y, xdot, ydot]"
-            )
-        starts = tuple(task.vector(f"starts[{i}]", 4, s) for i, s in enumerate(starts_raw))
-        loops = 1
-    else:
-        task.check_keys({"kind", "start", "goals", "loops"})
-        starts = (task.vector("start", 4),)
-        goals_raw = task.get("goals")
-        if not isinstance(goals_raw, list) or not goals_raw:
-            raise ConfigError(
-                f"{source}: 'task.goals' must be a non-empty list of [x, y, xdot, ydot]"
-            )
-        goals = tuple(task.vector(f"goals[{i}]", 4, g) for i, g in enumerate(goals_raw))
-        loops = task.integer("loops", 1, minimum=1)
-    dist_raw = top.get("disturbances", [])
-    if not isinstance(dist_raw, list):
-        raise ConfigError(f"{source}: 'disturbances' must be a list")
-    disturbances: list[Disturbance] = []
-    for i, d in enumerate(dist_raw):
-        r = _Reader(d, f"disturbances[{i}]", source)
-        k = r.choice("kind", ("push", "drag"))
-        if k == "push":
-            r.check_keys({"kind", "time", "impulse"})
-            imp = r.vector("impulse", 2)
-            disturbances.append(Push(time=r.number("time"), impulse=(imp[0], imp[1])))
-        else:
-            r.check_keys({"kind", "start_time", "end_time", "velocity"})
-            t0, t1 = r.number("start_time"), r.number("end_time")
-            if not t1 > t0 >= 0:
-                raise ConfigError(
-                    f"{source}: 'disturbances[{i}]' needs 0 <= start_time < end_time, "
-                    f"got {t0} and {t1}"
-                )
-            v = r.vector("velocity", 2)
-            disturbances.append(Drag(start_time=t0, end_time=t1, velocity=(v[0], v[1])))
+    halvings = planner.integer("max_halvings", 1, maximum=20)
     sim = top.sub("simulation", {})
     sim.check_keys({"plant", "seed", "position_noise_std", "max_time"})
     plant = sim.choice("plant", ("model3d", "mujoco"), "model3d")
-    noise = sim.number("position_noise_std", 0.0)
-    if noise < 0:
-        raise ConfigError(f"{source}: 'simulation.position_noise_std' must be >= 0, got {noise}")
+    noise = sim.number("position_noise_std", 0.0, minimum=0.0, maximum=MAX_NOISE_STD_M, unit="m")
+    seed = sim.integer("seed", 0, maximum=2**32 - 1)
+    max_time = sim.number("max_time", 120.0, positive=True, unit="s")
+    task = top.sub("task")
+    kind = task.choice("kind", ("point_to_point", "surveillance"))
+    state = "[x, y, xdot, ydot]"
+    if kind == "point_to_point":
+        task.check_keys({"kind", "goal", "starts"})
+        goals: tuple[tuple[float, ...], ...] = (
+            task.vector("goal", 4, bound=MAX_COORDINATE, what=state),
+        )
+        starts_raw = task.items("starts", min_len=1, max_len=MAX_STARTS, what=state)
+        starts = tuple(
+            task.vector(f"starts[{i}]", 4, s, bound=MAX_COORDINATE, what=state)
+            for i, s in enumerate(starts_raw)
+        )
+        loops = 1
+    else:
+        task.check_keys({"kind", "start", "goals", "loops"})
+        starts = (task.vector("start", 4, bound=MAX_COORDINATE, what=state),)
+        goals_raw = task.items("goals", min_len=1, max_len=MAX_GOALS, what=state)
+        goals = tuple(
+            task.vector(f"goals[{i}]", 4, g, bound=MAX_COORDINATE, what=state)
+            for i, g in enumerate(goals_raw)
+        )
+        loops = task.integer("loops", 1, minimum=1, maximum=MAX_LOOPS)
+    total = max_time * len(starts)
+    if total > MAX_SIMULATED_TIME_S:
+        raise top.fail(
+            f"'simulation.max_time' {max_time:g} s × {len(starts)} run(s) = {total:g} s of "
+            f"simulated time, more than the budget of {MAX_SIMULATED_TIME_S:g} s (about "
+            f"{MAX_SIMULATED_TIME_S * 1024 / 1e6:.1f} M control ticks); lower max_time or "
+            "split the starts over several scenarios"
+        )
+    dist_raw = top.items(
+        "disturbances", [], max_len=MAX_DISTURBANCES, what="{kind: push | drag, ...}"
+    )
+    disturbances: list[Disturbance] = []
+    for i, d in enumerate(dist_raw):
+        r = Fields(d, f"disturbances[{i}]", source)
+        k = r.choice("kind", ("push", "drag"))
+        if k == "push":
+            r.check_keys({"kind", "time", "impulse"})
+            t = r.number("time", minimum=0.0, unit="s")
+            if t >= max_time:
+                raise r.fail(
+                    f"'{r.path('time')}' {t:g} s is not before simulation.max_time "
+                    f"({max_time:g} s): the push would never apply"
+                )
+            imp = r.vector("impulse", 2, bound=MAX_IMPULSE_NS, what="[ix, iy] (N s)")
+            disturbances.append(Push(time=t, impulse=(imp[0], imp[1])))
+        else:
+            r.check_keys({"kind", "start_time", "end_time", "velocity"})
+            t0 = r.number("start_time", minimum=0.0, unit="s")
+            t1 = r.number("end_time", minimum=0.0, unit="s")
+            if not t1 > t0:
+                raise r.fail(
+                    f"'disturbances[{i}]' needs 0 <= start_time < end_time, got {t0:g} and {t1:g}"
+                )
+            if t0 >= max_time:
+                raise r.fail(
+                    f"'{r.path('start_time')}' {t0:g} s is not before simulation.max_time "
+                    f"({max_time:g} s): the drag would never apply"
+                )
+            v = r.vector("velocity", 2, bound=MAX_DRAG_SPEED_MPS, what="[vx, vy] (m/s)")
+            disturbances.append(Drag(start_time=t0, end_time=t1, velocity=(v[0], v[1])))
     return Scenario(
         name=name,
         map_source=map_source,
@@ -257,53 +250,146 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         loops=loops,
         disturbances=tuple(disturbances),
         plant=plant,  # type: ignore[arg-type]
-        seed=sim.integer("seed", 0),
+        seed=seed,
         position_noise_std=noise,
-        max_time=sim.number("max_time", 120.0, positive=True),
+        max_time=max_time,
         source=source,
     )
 
 
 def load_scenario(path: str | Path) -> Scenario:
-    """Load and validate a scenario YAML file."""
-    import yaml
+    """Load and validate a scenario YAML file (UTF-8, no duplicate keys).
 
+    Raises
+    ------
+    ConfigError
+        If the file cannot be read or decoded, is not valid YAML or not a valid
+        scenario; the message names the file.
+    """
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ConfigError(f"cannot read scenario file {path}: {exc.strerror}") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: not valid YAML: {yaml_error_message(exc)}") from None
+    data = load_document(path, "scenario file")
     return parse_scenario(data, source=str(path), base=path.parent)
+
+
+def estimate_instantiations(world_map: Any, palette: Any, max_halvings: int) -> tuple[int, int]:
+    """Policy instantiations the library would try with ``max_halvings`` on ``world_map``
+    (lattice points × 4 orientations × palette policies, summed over the spacings
+    d, d/2, ...), and the largest number of halvings within :data:`MAX_INSTANTIATIONS`
+    (−1 if even one pass exceeds it)."""
+    (x0, y0), (x1, y1) = world_map.bounds
+    w, h = x1 - x0, y1 - y0
+    total = 0
+    allowed = -1
+    for k in range(max_halvings + 1):
+        s = palette.d / 2**k
+        total += (math.floor(w / s) + 1) * (math.floor(h / s) + 1) * 4 * len(palette)
+        if total <= MAX_INSTANTIATIONS:
+            allowed = k
+    return total, allowed
+
+
+def check_scenario(scenario: Scenario, world_map: Any, palette: Any) -> None:
+    """Check a scenario against its loaded map and the palette before any heavy work.
+
+    Refuses a library refinement (``max_halvings``) whose instantiations would exceed
+    :data:`MAX_INSTANTIATIONS`, surveillance loops that cannot fit in ``max_time``, and
+    starts or goals outside the map or in an obstacle.
+
+    Raises
+    ------
+    ConfigError
+        For an over-budget scenario; the message gives the estimate and the limit.
+    PlanningError
+        For a start or goal outside the map or in an obstacle.
+    """
+    from gracenav.errors import PlanningError
+
+    src = scenario.source
+    (x0, y0), (x1, y1) = world_map.bounds
+    w, h = x1 - x0, y1 - y0
+    total, allowed = estimate_instantiations(world_map, palette, scenario.max_halvings)
+    if total > MAX_INSTANTIATIONS:
+        hint = (
+            f"use planner.max_halvings <= {allowed}"
+            if allowed >= 0
+            else "use a smaller map (even one pass exceeds it)"
+        )
+        raise ConfigError(
+            f"{src}: 'planner.max_halvings' {scenario.max_halvings} on this {w:g} m × {h:g} m "
+            f"map would try about {total:.3g} policy instantiations (lattice spacing down to "
+            f"{100 * palette.d / 2**scenario.max_halvings:.3g} cm), more than the budget of "
+            f"{MAX_INSTANTIATIONS:.0e}; {hint}"
+        )
+    if scenario.kind == "surveillance":
+        shortest = min(float(p.primitive.duration) for p in palette.policies)
+        need = scenario.loops * len(scenario.goals) * shortest
+        if need > scenario.max_time:
+            fit = int(scenario.max_time // (len(scenario.goals) * shortest))
+            hint = f"use loops <= {fit} or raise max_time" if fit else "raise max_time"
+            raise ConfigError(
+                f"{src}: 'task.loops' {scenario.loops} loops of {len(scenario.goals)} goal(s) "
+                f"need at least {need:.3g} s (every policy lasts >= {shortest:g} s), more than "
+                f"simulation.max_time = {scenario.max_time:g} s; {hint}"
+            )
+    footprint = scenario.footprint_radius
+    named = [(f"task.starts[{i}]", s) for i, s in enumerate(scenario.starts)]
+    if scenario.kind == "surveillance":
+        named = [("task.start", scenario.starts[0])]
+    named += [
+        ("task.goal" if scenario.kind == "point_to_point" else f"task.goals[{i}]", g)
+        for i, g in enumerate(scenario.goals)
+    ]
+    for key, state in named:
+        x, y = state[0], state[1]
+        if not (x0 <= x <= x1 and y0 <= y <= y1):
+            raise PlanningError(
+                f"{src}: '{key}' ({x:g}, {y:g}) is outside the map [{x0:g}, {x1:g}] × "
+                f"[{y0:g}, {y1:g}]"
+            )
+        if float(world_map.clearance(np.array([[x, y]]))[0]) < footprint:
+            raise PlanningError(
+                f"{src}: '{key}' ({x:g}, {y:g}) is inside an obstacle or closer to one (or "
+                f"to the map edge) than the robot's footprint radius {footprint:g} m"
+            )
 
 
 @dataclass(frozen=True)
 class RunSummary:
-    """Machine-readable outcome of one run (one start) of a scenario."""
+    """Machine-readable outcome of one run (one start) of a scenario.
+
+    Every quantity's name ends with its unit (``_s``, ``_m``, ``_mps``, ``_deg``, ``_nm``
+    (N m), ``_mps3`` (m/s³), ``_ms``); ``final_error_m`` is None for surveillance (no
+    single goal).
+    """
 
     start: tuple[float, ...]
     reached_goal: bool
     stop_reason: str
     time_s: float
     path_length_m: float
-    final_error_m: float
+    final_error_m: float | None
     final_speed_mps: float
     max_lean_deg: float
-    max_torque: float
-    max_jerk: float
+    max_torque_nm: float
+    max_jerk_mps3: float
     switches: int
     non_graceful_switches: int
-    max_graceful_torque_jump: float
+    max_graceful_torque_jump_nm: float
     min_clearance_m: float
     goals_reached: int
     tree_ms: float
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict."""
-        return {k: getattr(self, k) for k in self.__dataclass_fields__}
+        """JSON-ready dict (strict JSON: a non-finite number becomes None)."""
+        return {k: _json_value(getattr(self, k)) for k in self.__dataclass_fields__}
+
+
+def _json_value(v: Any) -> Any:
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    if isinstance(v, (list, tuple)):
+        return [_json_value(e) for e in v]
+    return v
 
 
 @dataclass(frozen=True)
@@ -325,6 +411,7 @@ def run_scenario(
     scenario: Scenario,
     *,
     palette: Any | None = None,
+    params: BallbotParams | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> ScenarioResult:
     """Build the library on the scenario's map and run every start of its task.
@@ -334,18 +421,40 @@ def run_scenario(
     scenario : Scenario
     palette : Palette, optional
         Default: the shipped palette.
+    params : BallbotParams, optional
+        Physical parameters of the simulated robot (default: the palette's); the
+        controllers keep the palette's design, so different values test robustness.
+        Each run starts where the controller believes the start is (encoder angles
+        times its nominal ball radius); with another ``ball_radius`` the episode's
+        position states (the plant's) differ from it by the ratio of the radii.
     progress : callable(done, total), optional
         Called after each run.
+
+    Raises
+    ------
+    ConfigError, PlanningError
+        From :func:`check_scenario`, before the library is built.
     """
+    from gracenav.errors import MapError
     from gracenav.execution import ExecutionOptions, HybridController
     from gracenav.graph import build_graph
     from gracenav.library import build_library
     from gracenav.palette import load_palette
     from gracenav.simulate import state_from_position
     from gracenav.world import load_map
+    from gracenav.world.occupancy import INLINE
 
     palette = palette if palette is not None else load_palette()
-    world_map = load_map(scenario.map_source)
+    plant_params = params if params is not None else palette.params
+    try:
+        world_map = load_map(scenario.map_source)
+    except MapError as exc:
+        if not isinstance(scenario.map_source, dict):
+            raise
+        # An inline map: name the scenario file and its key.
+        where = str(exc).replace(INLINE, "'map'", 1)
+        raise MapError(f"{scenario.source}: {where}") from None
+    check_scenario(scenario, world_map, palette)
     t0 = time.perf_counter()
     library = build_library(
         palette,
@@ -363,11 +472,13 @@ def run_scenario(
             position_noise_std=scenario.position_noise_std, seed=scenario.seed
         ),
     )
-    radius = palette.params.ball_radius
+    radius = palette.params.ball_radius  # the controller's: the robot starts where it believes
+    probe = HybridController(library, graph, criterion=scenario.cost, params=plant_params)
+    _check_task(scenario, probe, options)
     episodes = []
     runs = []
     for i, start in enumerate(scenario.starts):
-        hc = HybridController(library, graph, criterion=scenario.cost)
+        hc = HybridController(library, graph, criterion=scenario.cost, params=plant_params)
         x0 = state_from_position(np.asarray(start), radius)
         ep = hc.run(
             x0,
@@ -377,7 +488,7 @@ def run_scenario(
             options=options,
         )
         episodes.append(ep)
-        runs.append(_summarise(ep, start, scenario, world_map, palette))
+        runs.append(_summarise(ep, start, scenario, world_map, plant_params))
         if progress is not None:
             progress(i + 1, len(scenario.starts))
     return ScenarioResult(
@@ -393,8 +504,34 @@ def run_scenario(
     )
 
 
+def _check_task(scenario: Scenario, hc: Any, options: Any) -> None:
+    """Every goal and every start must be possible before the first run starts: a bad
+    third start should not cost the first two runs. Each start is probed by a one-tick
+    run; the message names the key."""
+    from dataclasses import replace as _replace
+
+    from gracenav.errors import PlanningError
+    from gracenav.simulate import state_from_position
+
+    ptp = scenario.kind == "point_to_point"
+    for j, goal in enumerate(scenario.goals):
+        try:
+            hc.goal_policy(goal)
+        except PlanningError as exc:
+            key = "task.goal" if ptp else f"task.goals[{j}]"
+            raise PlanningError(f"{scenario.source}: '{key}': {exc}") from None
+    probe = _replace(options, max_time=1.0 / 1024.0)
+    for i, start in enumerate(scenario.starts):
+        x0 = state_from_position(np.asarray(start), hc.gains.params.ball_radius)
+        try:
+            hc.run(x0, scenario.goals, options=probe)
+        except PlanningError as exc:
+            key = f"task.starts[{i}]" if ptp else "task.start"
+            raise PlanningError(f"{scenario.source}: '{key}': {exc}") from None
+
+
 def _summarise(
-    ep: Any, start: Sequence[float], sc: Scenario, world_map: Any, palette: Any
+    ep: Any, start: Sequence[float], sc: Scenario, world_map: Any, params: BallbotParams
 ) -> RunSummary:
     p = ep.position_state
     goal = np.asarray(sc.goals[-1] if sc.kind == "point_to_point" else sc.goals[0])
@@ -408,44 +545,49 @@ def _summarise(
         path_length_m=ep.path_length,
         final_error_m=float(np.linalg.norm(p[-1, :2] - goal[:2]))
         if sc.kind == "point_to_point"
-        else float("nan"),
+        else None,
         final_speed_mps=float(np.linalg.norm(p[-1, 2:])),
         max_lean_deg=float(np.rad2deg(np.max(np.abs(ep.lean)))),
-        max_torque=float(np.max(np.abs(ep.inputs))),
-        max_jerk=float(np.max(ep.ball_jerk(palette.params))) if ep.time.size > 2 else 0.0,
+        max_torque_nm=float(np.max(np.abs(ep.inputs))),
+        max_jerk_mps3=float(np.max(ep.ball_jerk(params))) if ep.time.size > 2 else 0.0,
         switches=ep.switches,
         non_graceful_switches=ep.non_graceful_switches,
-        max_graceful_torque_jump=float(np.max(jumps)) if jumps.size else 0.0,
+        max_graceful_torque_jump_nm=float(np.max(jumps)) if jumps.size else 0.0,
         min_clearance_m=float(np.min(clearance)),
         goals_reached=len(ep.goals_reached),
         tree_ms=1000.0 * float(np.median(ep.tree_seconds)) if ep.tree_seconds else 0.0,
     )
 
 
-def write_outputs(result: ScenarioResult, out: str | Path, *, animation: bool = True) -> list[Path]:
-    """Write summary.json, trajectory.csv, events.csv, figures and an animation into ``out``.
-
-    Returns the written paths.
-    """
-    from gracenav.plotting.navigation import animate_episode, plot_lean, plot_paths
-
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+def summary_dict(result: ScenarioResult) -> dict[str, Any]:
+    """The content of ``summary.json`` (strict JSON: no NaN, None where not applicable)."""
     sc = result.scenario
-    summary = {
+    return {
         "scenario": sc.name,
         "source": sc.source,
         "task": sc.kind,
         "plant": sc.plant,
         "library_size": result.library_size,
         "graph_edges": result.graph_edges,
-        "coverage": result.coverage,
+        "coverage": _json_value(result.coverage),
         "library_and_graph_s": result.library_seconds,
         "runs": [r.to_dict() for r in result.runs],
     }
+
+
+def write_outputs(result: ScenarioResult, out: str | Path, *, animation: bool = True) -> list[Path]:
+    """Write summary.json, trajectory.csv, events.csv, figures and an animation into ``out``.
+
+    Each file is written atomically; to publish the set as a unit, write into a
+    staging directory (the ``gracenav run`` command does). Returns the written paths.
+    """
+    from gracenav.plotting.navigation import animate_episode, plot_lean, plot_paths
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
     written = []
     path = out / "summary.json"
-    atomic_write_text(path, json.dumps(summary, indent=2, allow_nan=True) + "\n")
+    atomic_write_text(path, json.dumps(summary_dict(result), indent=2, allow_nan=False) + "\n")
     written.append(path)
     rows = ["run,t,x,y,xdot,ydot,lean_x,lean_y,tau_x,tau_y,ref_x,ref_y,policy"]
     for k, ep in enumerate(result.episodes):

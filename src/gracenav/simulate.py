@@ -13,6 +13,7 @@ States are x = [θ_x, θ_y, φ_x, φ_y, θ̇_x, θ̇_y, φ̇_x, φ̇_y] (see
 from __future__ import annotations
 
 import enum
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Literal
@@ -28,6 +29,7 @@ if TYPE_CHECKING:
     from gracenav.policies import MotionPolicy
 
 __all__ = [
+    "DEFAULT_FALL_LEAN",
     "BatchResult",
     "BodyForce",
     "Disturbance",
@@ -49,6 +51,15 @@ FloatArray = NDArray[np.float64]
 Plant = Literal["model3d", "mujoco"]
 
 DEFAULT_CONTROL_RATE = 1024.0
+
+DEFAULT_FALL_LEAN = math.radians(20.0)
+"""Default fall limit: |lean| (rad) in either plane beyond which a run has fallen (20°).
+
+Measured on the 3D model with the CMU parameters (station keeping, 20 s, no fall
+limit): the balancing controller recovers from initial leans up to 20.4° in both
+planes (21.5° in one plane), saturating the torque and running ≈2.6 m away, and
+diverges from larger ones; the palette's policies lean less than 6°. A lean past 20°
+is therefore taken as a fall."""
 
 
 def position_state(states: ArrayLike, radius: float) -> FloatArray:
@@ -188,16 +199,23 @@ class SimulationOptions:
         Standard deviation of white noise on the measured ball velocity (m/s).
     seed : int
         Seed of the noise generator.
+    fall_lean : float
+        Fall limit (rad): a run stops with :attr:`StopReason.FELL` at the first tick
+        where |φ_x| or |φ_y| exceeds it (or the state is no longer finite). Default
+        :data:`DEFAULT_FALL_LEAN` (20°); ``math.inf`` never stops.
     """
 
     substeps: int = 1
     position_noise_std: float = 0.0
     velocity_noise_std: float = 0.0
     seed: int = 0
+    fall_lean: float = DEFAULT_FALL_LEAN
 
     def __post_init__(self) -> None:
         if not (isinstance(self.substeps, int) and self.substeps >= 1):
             raise ConfigError(f"substeps must be a positive integer, got {self.substeps!r}")
+        if not self.fall_lean > 0.0:
+            raise ConfigError(f"fall_lean must be positive (rad), got {self.fall_lean!r}")
         for name in ("position_noise_std", "velocity_noise_std"):
             if not getattr(self, name) >= 0.0:
                 raise ConfigError(f"{name} must be >= 0, got {getattr(self, name)!r}")
@@ -208,6 +226,8 @@ class StopReason(enum.Enum):
 
     COMPLETED = "completed"
     DOMAIN_EXIT = "domain_exit"
+    FELL = "fell"
+    """|lean| exceeded :attr:`SimulationOptions.fall_lean`: the run stopped there."""
 
 
 @dataclass(frozen=True)
@@ -271,6 +291,9 @@ class BatchResult:
         First tick outside the monitored domain, −1 if never.
     states : ndarray, shape (B, T + 1, 8) or None
         Histories, when recorded.
+    fall_tick : ndarray of int, shape (B,)
+        Tick at which the run fell and stopped (see ``SimulationOptions.fall_lean``),
+        −1 if it did not.
     """
 
     final_states: FloatArray
@@ -281,6 +304,7 @@ class BatchResult:
     saturated_ticks: NDArray[np.int64]
     exit_tick: NDArray[np.int64]
     states: FloatArray | None = field(default=None)
+    fall_tick: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
 
 def _tick(t: float, dt: float, num_ticks: int, what: str) -> int:
@@ -381,7 +405,7 @@ def _run_kernel(
             )
     states = np.zeros((nb, nt + 1, 8) if record else (nb, 0, 8))
     inputs = np.zeros((nb, nt + 1, 2) if record else (nb, 0, 2))
-    summary = np.zeros((nb, 6))
+    summary = np.zeros((nb, 7))
     final = np.zeros((nb, 8))
     _kernels.closed_loop(
         _model_constants(plant_params),
@@ -406,6 +430,7 @@ def _run_kernel(
         centers,
         shapes,
         stop_on_exit,
+        float(options.fall_lean),
         record,
         states,
         inputs,
@@ -413,6 +438,14 @@ def _run_kernel(
         final,
     )
     return states, inputs, summary, final
+
+
+def _stop_reason(stop_on_exit: bool, exit_tick: int, fall_tick: int) -> StopReason:
+    if fall_tick >= 0:
+        return StopReason.FELL
+    if stop_on_exit and exit_tick >= 0:
+        return StopReason.DOMAIN_EXIT
+    return StopReason.COMPLETED
 
 
 def _check_state(x0: ArrayLike, batch: bool) -> FloatArray:
@@ -487,9 +520,7 @@ def simulate(
         max_torque=float(summary[0, 2]),
         saturated_ticks=int(summary[0, 4]),
         max_domain_value=float(summary[0, 3]),
-        stop_reason=StopReason.DOMAIN_EXIT
-        if stop_on_exit and summary[0, 5] >= 0
-        else StopReason.COMPLETED,
+        stop_reason=_stop_reason(stop_on_exit, int(summary[0, 5]), int(summary[0, 6])),
     )
 
 
@@ -527,6 +558,7 @@ def simulate_batch(
         saturated_ticks=summary[:, 4].astype(np.int64),
         exit_tick=summary[:, 5].astype(np.int64),
         states=states if record else None,
+        fall_tick=summary[:, 6].astype(np.int64),
     )
 
 
@@ -562,6 +594,7 @@ def _simulate_mujoco(
     max_lean = max_tau = max_dom = 0.0
     saturated = 0
     exit_tick = -1
+    fall_tick = -1
     last = nt
     for n in range(nt + 1):
         x = plant.get_state()
@@ -585,6 +618,8 @@ def _simulate_mujoco(
         saturated += int(np.count_nonzero(np.abs(tau) > plant_params.torque_limit))
         np.clip(tau, -plant_params.torque_limit, plant_params.torque_limit, out=tau)
         max_lean = max(max_lean, float(np.max(np.abs(x[2:4]))))
+        if not np.all(np.abs(x[2:4]) <= options.fall_lean):
+            fall_tick = n
         if monitor is not None:
             dp = position_state(x, r) - monitor[0][n]
             val = float(dp @ monitor[1][n] @ dp)
@@ -593,7 +628,7 @@ def _simulate_mujoco(
                 exit_tick = n
         states[n] = x
         inputs[n] = tau
-        if (exit_tick >= 0 and stop_on_exit) or n == nt:
+        if (exit_tick >= 0 and stop_on_exit) or fall_tick >= 0 or n == nt:
             last = n
             break
         f = np.zeros(3)
@@ -614,9 +649,7 @@ def _simulate_mujoco(
         max_torque=max_tau,
         saturated_ticks=saturated,
         max_domain_value=max_dom,
-        stop_reason=StopReason.DOMAIN_EXIT
-        if stop_on_exit and exit_tick >= 0
-        else StopReason.COMPLETED,
+        stop_reason=_stop_reason(stop_on_exit, exit_tick, fall_tick),
     )
 
 

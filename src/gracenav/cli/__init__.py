@@ -1,15 +1,19 @@
 """The ``gracenav`` command line: a thin layer over the library.
 
-Every error a user can cause is printed as one line, ``gracenav: error: ...``,
-and the command exits with status 2 (status 1 for an unexpected failure).
+Every error a user can cause is printed as one line, ``gracenav: error: ...``, and the
+command exits with status 2 (status 1 for a fall of the simulated robot or a failure of
+the machine, such as a full disk). Inputs are checked before any heavy work; progress
+bars appear on a terminal only, on their own line.
 """
 
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 from collections.abc import Sequence
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from gracenav.errors import GracenavError
 
@@ -20,7 +24,7 @@ class _Parser(argparse.ArgumentParser):
     """Argument parser whose errors are a single line."""
 
     def error(self, message: str) -> NoReturn:
-        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
+        self.exit(2, f"gracenav: error: {message} (see {self.prog} --help)\n")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -46,19 +50,61 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, handled like Ctrl-C: outputs being written are discarded."""
+
+
+def _on_sigterm(signum: int, frame: Any) -> None:
+    raise _Terminated()
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the exit status."""
+    """Run the command line; returns the exit status.
+
+    Errors a user can cause print one line ``gracenav: error: ...`` on standard error and
+    return 2; a fall of the simulated robot prints ``gracenav: fell: ...`` and returns 1;
+    SIGINT and SIGTERM stop the command, discard its unfinished outputs and return 130
+    or 143.
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         status: int = args.func(args)
     except GracenavError as exc:
-        message = " ".join(str(exc).split())  # always one line
-        print(f"gracenav: error: {message}", file=sys.stderr)
+        print(f"gracenav: error: {_one_line(str(exc))}", file=sys.stderr)
         return 2
+    except _Terminated:
+        print("gracenav: terminated; unfinished outputs discarded", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
-        print("gracenav: interrupted", file=sys.stderr)
+        print("gracenav: interrupted; unfinished outputs discarded", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # e.g. `gracenav palette show | head -1`
+        import os
+
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 141
+    except MemoryError:
+        print("gracenav: error: out of memory; use a smaller problem", file=sys.stderr)
+        return 1
+    except OSError as exc:
+        where = f" {exc.filename}" if exc.filename else ""
+        print(
+            f"gracenav: error: cannot access{where}: {_one_line(exc.strerror or str(exc))}",
+            file=sys.stderr,
+        )
+        return 1
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
     return status
 
 

@@ -6,6 +6,9 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from gracenav.cli._common import check_figure_path, number, save_figure
+from gracenav.errors import ConfigError
+
 __all__ = ["register"]
 
 
@@ -14,7 +17,10 @@ def register(sub: Any) -> None:
     p = sub.add_parser(
         "plot",
         help="draw the paper's figures",
-        description="Draw figures as PNG files (angles in degrees, lengths in metres).",
+        description=(
+            "Draw figures (angles in degrees, lengths in metres); the format follows the "
+            "--out suffix (.png, .pdf, .svg, ...)."
+        ),
     )
     s = p.add_subparsers(dest="what", metavar="WHAT", parser_class=type(p))
     s.required = True
@@ -23,7 +29,12 @@ def register(sub: Any) -> None:
         help="XY paths of the motion primitive set Σ(d) (paper Fig. 3(a))",
         description="Plan (or load from the cache) the primitive set and draw its XY paths.",
     )
-    pr.add_argument("--d", type=float, default=0.5, help="distance parameter d (m, default 0.5)")
+    pr.add_argument(
+        "--d",
+        type=number(minimum=0.1, maximum=2.0, unit="m"),
+        default=0.5,
+        help="distance parameter d (m, default 0.5, in [0.1, 2])",
+    )
     pr.add_argument("--out", type=Path, required=True, help="output PNG file")
     pr.set_defaults(func=run_primitives)
     dm = s.add_parser(
@@ -47,10 +58,16 @@ def register(sub: Any) -> None:
     lb.add_argument("--out", type=Path, required=True, help="output PNG file")
     lb.add_argument("--coverage", action="store_true", help="draw the coverage view")
     lb.add_argument(
-        "--footprint", type=float, default=0.2, help="robot footprint radius (m, default 0.2)"
+        "--footprint",
+        type=number(minimum=0.0, maximum=5.0, unit="m"),
+        default=0.2,
+        help="robot footprint radius (m, default 0.2)",
     )
     lb.add_argument(
-        "--max-halvings", type=int, default=1, help="coverage refinement limit (default 1)"
+        "--max-halvings",
+        type=number(integer=True, minimum=0, maximum=20),
+        default=1,
+        help="coverage refinement limit (default 1)",
     )
     lb.set_defaults(func=run_library)
 
@@ -60,7 +77,9 @@ def run_primitives(args: argparse.Namespace) -> int:
     from gracenav.plotting.primitives import plot_primitives
     from gracenav.primitives import primitive_set
 
-    out = plot_primitives(primitive_set(d=args.d), args.out)
+    out = check_figure_path(args.out)
+    prims = primitive_set(d=args.d)
+    save_figure(out, lambda tmp: plot_primitives(prims, tmp))
     print(f"wrote {out}")
     return 0
 
@@ -70,8 +89,10 @@ def run_domain(args: argparse.Namespace) -> int:
     from gracenav.palette import load_palette
     from gracenav.plotting.domains import plot_domain
 
+    out = check_figure_path(args.out)
     pal = load_palette(args.file)
-    out = plot_domain(pal[args.name], args.out)
+    policy = pal[args.name]
+    save_figure(out, lambda tmp: plot_domain(policy, tmp))
     print(f"wrote {out}")
     return 0
 
@@ -81,14 +102,27 @@ def run_library(args: argparse.Namespace) -> int:
     from gracenav.library import build_library
     from gracenav.palette import load_palette
     from gracenav.plotting.library import plot_library
+    from gracenav.scenarios import MAX_INSTANTIATIONS, estimate_instantiations
     from gracenav.world import load_map
 
+    out = check_figure_path(args.out)
+    palette = load_palette()
+    world_map = load_map(args.map)
+    total, allowed = estimate_instantiations(world_map, palette, args.max_halvings)
+    if total > MAX_INSTANTIATIONS:
+        (x0, y0), (x1, y1) = world_map.bounds
+        hint = f"use --max-halvings {allowed}" if allowed >= 0 else "use a smaller map"
+        raise ConfigError(
+            f"--max-halvings {args.max_halvings} on this {x1 - x0:g} m × {y1 - y0:g} m map would "
+            f"try about {total:.3g} policy instantiations, more than the budget of "
+            f"{MAX_INSTANTIATIONS:.0e}; {hint}"
+        )
     lib = build_library(
-        load_palette(),
-        load_map(args.map),
+        palette,
+        world_map,
         footprint_radius=args.footprint,
         max_halvings=args.max_halvings,
     )
-    out = plot_library(lib, args.out, coverage=args.coverage)
+    save_figure(out, lambda tmp: plot_library(lib, tmp, coverage=args.coverage))
     print(f"{len(lib)} library policies, coverage {100 * lib.coverage:.1f} %; wrote {out}")
     return 0

@@ -8,6 +8,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from gracenav.cli._common import add_params_argument, check_plant
+
 __all__ = ["register"]
 
 
@@ -20,10 +22,13 @@ def register(sub: Any) -> None:
             "Build the motion policy library on the scenario's map, plan single-goal trees "
             "and execute the task with the hybrid controller on the simulated robot. Writes "
             "DIR/summary.json (per run: start, reached_goal, time_s, path_length_m, "
-            "final_error_m, max_lean_deg, max_torque, max_jerk, switches, "
+            "final_error_m, max_lean_deg, max_torque_nm, max_jerk_mps3, switches, "
             "non_graceful_switches, min_clearance_m, stop_reason), DIR/trajectory.csv, "
             "DIR/events.csv (the switch log), DIR/paths.png, DIR/lean.png and "
-            "DIR/animation.gif. The scenario format is described in README.md."
+            "DIR/animation.gif. The files are written together: DIR is replaced only when "
+            "all are complete, and a second run into the same DIR is refused. A run whose "
+            "robot leans beyond 20° stops as fallen (stop_reason fell, exit status 1). "
+            "The scenario format is described in README.md."
         ),
     )
     r.add_argument("scenario", type=Path, help="scenario YAML file")
@@ -35,6 +40,7 @@ def register(sub: Any) -> None:
         help="override the scenario's simulated plant",
     )
     r.add_argument("--no-animation", action="store_true", help="skip the GIF (faster)")
+    add_params_argument(r)
     r.set_defaults(func=run_run)
     d = sub.add_parser(
         "demo",
@@ -46,50 +52,74 @@ def register(sub: Any) -> None:
         ),
     )
     d.add_argument("--out", type=Path, default=Path("out/demo"), help="output directory")
+    d.add_argument("--no-animation", action="store_true", help="skip the GIF (faster)")
+    add_params_argument(d)
     d.set_defaults(func=run_demo)
 
 
-def _execute(scenario_path: Path, out: Path, plant: str | None, animation: bool) -> int:
+def _execute(
+    scenario_path: Path, out: Path, plant: str | None, animation: bool, params_path: Path | None
+) -> int:
     import dataclasses
 
+    from gracenav._io import OutputDir
+    from gracenav._progress import Progress
+    from gracenav.params import BallbotParams
     from gracenav.scenarios import load_scenario, run_scenario, write_outputs
 
     sc = load_scenario(scenario_path)
     if plant is not None:
         sc = dataclasses.replace(sc, plant=plant)  # type: ignore[arg-type]
-    total = len(sc.starts)
+    check_plant(sc.plant, "--plant" if plant is not None else f"{sc.source}: simulation.plant")
+    params = None if params_path is None else BallbotParams.load_overrides(params_path)
+    with OutputDir(out) as staging:
+        with Progress(len(sc.starts), f"{sc.name}: library") as bar:
 
-    def progress(done: int, n: int) -> None:
-        bar = "#" * done + "." * (n - done)
-        print(f"\rrunning {sc.name}: [{bar}] {done}/{n}", end="", file=sys.stderr, flush=True)
+            def progress(done: int, n: int) -> None:
+                bar.set_label(f"{sc.name}: runs")
+                bar.update(1)
 
-    progress(0, total)
-    result = run_scenario(sc, progress=progress)
-    print(file=sys.stderr)
-    written = write_outputs(result, out, animation=animation)
+            result = run_scenario(sc, params=params, progress=progress)
+            bar.set_label(f"{sc.name}: writing")
+            written = write_outputs(result, staging.staging, animation=animation)
+    written = [out / p.name for p in written]
     print(
         f"library: {result.library_size} policies, {result.graph_edges} edges, coverage "
         f"{100 * result.coverage:.1f} %, built in {1000 * result.library_seconds:.0f} ms"
     )
+    fell = []
     for k, run in enumerate(result.runs):
         state = "reached goal" if run.reached_goal else f"stopped ({run.stop_reason})"
-        err = (
-            ""
-            if run.final_error_m != run.final_error_m
-            else f", error {run.final_error_m * 1000:.1f} mm"
-        )
+        err = "" if run.final_error_m is None else f", error {run.final_error_m * 1000:.1f} mm"
+        start = ", ".join(f"{v:g}" for v in run.start[:2])
         print(
-            f"run {k + 1} from {run.start[:2]}: {state} in {run.time_s:.2f} s{err}, "
+            f"run {k + 1} from ({start}): {state} in {run.time_s:.2f} s{err}, "
             f"max lean {run.max_lean_deg:.2f}°, switches {run.switches} "
             f"({run.non_graceful_switches} non-graceful)"
         )
+        if run.stop_reason == "fell":
+            fell.append(f"run {k + 1} at t = {run.time_s:.2f} s")
     print(f"wrote {', '.join(str(p) for p in written)}")
+    if fell:
+        print(
+            f"gracenav: fell: the robot fell over (lean beyond {_fall_limit_deg():g}°) in "
+            f"{'; '.join(fell)}",
+            file=sys.stderr,
+        )
     return 0 if all(r.reached_goal for r in result.runs) else 1
+
+
+def _fall_limit_deg() -> float:
+    import math
+
+    from gracenav.simulate import DEFAULT_FALL_LEAN
+
+    return math.degrees(DEFAULT_FALL_LEAN)
 
 
 def run_run(args: argparse.Namespace) -> int:
     """Run ``gracenav run``."""
-    return _execute(args.scenario, args.out, args.plant, not args.no_animation)
+    return _execute(args.scenario, args.out, args.plant, not args.no_animation, args.params)
 
 
 def run_demo(args: argparse.Namespace) -> int:
@@ -97,4 +127,4 @@ def run_demo(args: argparse.Namespace) -> int:
     path = Path(
         str(resources.files("gracenav") / "data" / "scenarios" / "fig5_point_to_point.yaml")
     )
-    return _execute(path, args.out, None, True)
+    return _execute(path, args.out, None, not args.no_animation, args.params)
