@@ -197,3 +197,30 @@ def test_atomic_save_leaves_no_temporary_files(tmp_path) -> None:
     pal.save(tmp_path / "a.npz")
     assert [p.name for p in tmp_path.iterdir()] == ["a.npz"]
     assert isinstance(Palette.from_bytes((tmp_path / "a.npz").read_bytes()), Palette)
+
+
+def test_forced_file_defaults_to_what_it_was_built_for(tmp_path) -> None:
+    """A palette built for another robot, forced by path, loads without restating that
+    robot; its gains are still designed anew and compared."""
+    shipped = load_palette(build=False)
+    heavier = dataclasses.replace(BallbotParams(), body_mass=52.0)
+    gains = design_gains(heavier)
+    options = shipped.options
+    other = dataclasses.replace(
+        shipped,
+        policies=tuple(dataclasses.replace(p, gains=gains) for p in shipped.policies),
+        params=heavier,
+        key=palette_key(heavier, gains, options, shipped.d),
+    )
+    path = other.save(tmp_path / "heavier.npz")
+    pal = load_palette(path)
+    assert pal.params == heavier and pal.key == other.key
+    assert load_palette(path, params=heavier).key == other.key
+    with pytest.raises(CacheError, match=r"body_mass: 52\.0 in the file, 51\.66 requested"):
+        load_palette(path, params=BallbotParams())
+    noisy = dataclasses.replace(other.gains, lqr=other.gains.lqr * (1 + 1e-6))
+    edited = dataclasses.replace(
+        other, policies=tuple(dataclasses.replace(p, gains=noisy) for p in other.policies)
+    )
+    with pytest.raises(CacheError, match=r"gains differ .* relative 1\.0e-06"):
+        load_palette(edited.save(tmp_path / "edited.npz"))

@@ -407,6 +407,18 @@ def _read_palette(path: Path) -> Palette:
     return pal
 
 
+def _redesign(gains: ControllerGains) -> ControllerGains:
+    """The gains designed anew from ``gains``' design inputs (hand-given gains as given)."""
+    if gains.weights is None:
+        return gains
+    return design_gains(
+        gains.params,
+        gains.weights,
+        max_lean_compensation=gains.max_lean_compensation,
+        friction_compensation=gains.friction_compensation,
+    )
+
+
 def cached_palette_path(key: str) -> Path:
     """Where the palette with ``key`` (see :func:`palette_key`) is cached."""
     return cache_dir() / f"palette-{key[:24]}.npz"
@@ -439,9 +451,10 @@ def load_palette(
         Force this palette file (default ``$GRACENAV_PALETTE`` if set). A forced file
         that does not match the request is an error, never rebuilt.
     params, gains, options, d : optional
-        What the palette must have been built for (defaults: the CMU ballbot,
-        :func:`gracenav.control.design_gains` on ``params``, default
-        :class:`VerificationOptions`; d: the forced file's, else 0.5 m).
+        What the palette must have been built for. Defaults: for a forced file, what
+        it was built for (its gains designed anew from its design inputs and
+        compared); otherwise the CMU ballbot, :func:`gracenav.control.design_gains`
+        on ``params``, default :class:`VerificationOptions` and d = 0.5 m.
     build : bool
         Build a missing palette (False: raise CacheError instead).
     processes : int, optional
@@ -458,11 +471,14 @@ def load_palette(
     import os
 
     forced = path if path is not None else (os.environ.get(PALETTE_ENV) or None)
-    params = params if params is not None else BallbotParams()
-    gains = gains if gains is not None else design_gains(params)
-    options = options if options is not None else VerificationOptions()
     if forced is not None:
         pal = _read_palette(Path(forced))
+        # What is not asked for is what the file was built for; its gains are then
+        # designed anew from the file's design inputs and compared, as for any request.
+        params = params if params is not None else pal.params
+        if gains is None:
+            gains = _redesign(pal.gains) if params == pal.params else design_gains(params)
+        options = options if options is not None else pal.options
         why = _mismatch(pal, params, gains, options, d if d is not None else pal.d)
         if why is not None:
             raise CacheError(
@@ -471,6 +487,9 @@ def load_palette(
                 "file with `gracenav palette build --out FILE`"
             )
         return pal
+    params = params if params is not None else BallbotParams()
+    gains = gains if gains is not None else design_gains(params)
+    options = options if options is not None else VerificationOptions()
     d = float(d) if d is not None else 0.5
     key = palette_key(params, gains, options, d)
     for candidate in (shipped_palette_path(), cached_palette_path(key)):

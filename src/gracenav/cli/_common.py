@@ -14,6 +14,7 @@ from typing import Any
 from gracenav.errors import OutputError
 
 __all__ = [
+    "add_palette_argument",
     "add_params_argument",
     "check_figure_path",
     "check_plant",
@@ -55,8 +56,28 @@ def number(
     return parse
 
 
-def add_params_argument(parser: argparse.ArgumentParser) -> None:
-    """Add ``--params FILE`` (robot parameters overriding the CMU ballbot's)."""
+def add_palette_argument(parser: argparse.ArgumentParser) -> None:
+    """Add ``--palette FILE`` (a palette file instead of the shipped or cached one)."""
+    parser.add_argument(
+        "--palette",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help=(
+            "motion policy palette file to use (default: $GRACENAV_PALETTE, else the "
+            "shipped palette); e.g. one written by `gracenav palette build --out FILE`"
+        ),
+    )
+
+
+def add_params_argument(parser: argparse.ArgumentParser, what: str | None = None) -> None:
+    """Add ``--params FILE`` (robot parameters overriding the CMU ballbot's); ``what``
+    says what they are used for (default: the simulated plant only)."""
+    used = (
+        what
+        if what is not None
+        else "the simulated plant; the controllers keep their nominal design"
+    )
     parser.add_argument(
         "--params",
         type=Path,
@@ -64,8 +85,8 @@ def add_params_argument(parser: argparse.ArgumentParser) -> None:
         metavar="FILE",
         help=(
             "YAML or JSON file of robot parameters (BallbotParams field names, SI units) "
-            "for the simulated plant; fields not given keep the CMU ballbot's values, e.g. "
-            "a file with only 'body_mass: 60'. The controllers keep their nominal design."
+            "for " + used + "; fields not given keep the CMU ballbot's values, e.g. a file "
+            "with only 'body_mass: 60'"
         ),
     )
 

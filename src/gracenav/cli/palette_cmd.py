@@ -8,6 +8,8 @@ from typing import Any
 
 import numpy as np
 
+from gracenav.cli._common import add_params_argument, load_params
+
 __all__ = ["register"]
 
 
@@ -42,6 +44,7 @@ def register(sub: Any) -> None:
         ),
     )
     b.add_argument("--processes", type=int, default=2, help="worker processes (default 2)")
+    add_params_argument(b, "the robot to build the palette for (controller and plant)")
     b.add_argument("--d", type=float, default=0.5, help="distance parameter d (m, default 0.5)")
     b.set_defaults(func=run_build)
     v = s.add_parser(
@@ -118,7 +121,7 @@ def run_build(args: argparse.Namespace) -> int:
     if not args.d > 0:
         raise ConfigError(f"--d must be positive, got {args.d}")
     t0 = time.perf_counter()
-    params = BallbotParams()
+    params = load_params(args) or BallbotParams()
     pal = build_palette_for(
         params=params,
         gains=design_gains(params),

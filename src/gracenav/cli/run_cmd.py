@@ -8,7 +8,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from gracenav.cli._common import add_params_argument, check_plant
+from gracenav.cli._common import add_palette_argument, add_params_argument, check_plant
 
 __all__ = ["register"]
 
@@ -41,6 +41,7 @@ def register(sub: Any) -> None:
     )
     r.add_argument("--no-animation", action="store_true", help="skip the GIF (faster)")
     add_params_argument(r)
+    add_palette_argument(r)
     r.set_defaults(func=run_run)
     d = sub.add_parser(
         "demo",
@@ -54,11 +55,17 @@ def register(sub: Any) -> None:
     d.add_argument("--out", type=Path, default=Path("out/demo"), help="output directory")
     d.add_argument("--no-animation", action="store_true", help="skip the GIF (faster)")
     add_params_argument(d)
+    add_palette_argument(d)
     d.set_defaults(func=run_demo)
 
 
 def _execute(
-    scenario_path: Path, out: Path, plant: str | None, animation: bool, params_path: Path | None
+    scenario_path: Path,
+    out: Path,
+    plant: str | None,
+    animation: bool,
+    params_path: Path | None,
+    palette_path: Path | None = None,
 ) -> int:
     import dataclasses
 
@@ -72,6 +79,9 @@ def _execute(
         sc = dataclasses.replace(sc, plant=plant)  # type: ignore[arg-type]
     check_plant(sc.plant, "--plant" if plant is not None else f"{sc.source}: simulation.plant")
     params = None if params_path is None else BallbotParams.load_overrides(params_path)
+    from gracenav.palette import load_palette
+
+    palette = load_palette(palette_path)  # before the output directory is touched
     with OutputDir(out) as staging:
         with Progress(len(sc.starts), f"{sc.name}: library") as bar:
 
@@ -79,7 +89,7 @@ def _execute(
                 bar.set_label(f"{sc.name}: runs")
                 bar.update(1)
 
-            result = run_scenario(sc, params=params, progress=progress)
+            result = run_scenario(sc, palette=palette, params=params, progress=progress)
             bar.set_label(f"{sc.name}: writing")
             written = write_outputs(result, staging.staging, animation=animation)
     written = [out / p.name for p in written]
@@ -119,7 +129,9 @@ def _fall_limit_deg() -> float:
 
 def run_run(args: argparse.Namespace) -> int:
     """Run ``gracenav run``."""
-    return _execute(args.scenario, args.out, args.plant, not args.no_animation, args.params)
+    return _execute(
+        args.scenario, args.out, args.plant, not args.no_animation, args.params, args.palette
+    )
 
 
 def run_demo(args: argparse.Namespace) -> int:
@@ -127,4 +139,4 @@ def run_demo(args: argparse.Namespace) -> int:
     path = Path(
         str(resources.files("gracenav") / "data" / "scenarios" / "fig5_point_to_point.yaml")
     )
-    return _execute(path, args.out, None, not args.no_animation, args.params)
+    return _execute(path, args.out, None, not args.no_animation, args.params, args.palette)
