@@ -658,12 +658,12 @@ def cmd_roa(args: argparse.Namespace) -> None:
         print(f"{time.process_time() - t0:.0f} s CPU")
         return
     runs = 0
-    best: tuple[float, float, float, float] | None = None
+    best: dict[str, tuple[float, float, float, float]] = {}
     print(f"t_f {args.duration:g} s, {args.points} boundary points x lean variants "
           f"{', '.join(variants)}; D' {_outer_text(outer, args.hold)}; pass: G at t_f, "
           "lean <= 8 deg, no torque saturation")
-    print("| r | e_v/e_p 1/s | e_p m | e_v m/s | spacing covering |v|<=0.5 m | "
-          "covering |v|<=0.8 m |")
+    print("| r | e_v/e_p 1/s | e_p m | e_v m/s | lattice spacing covering all |v|<=0.5 m | "
+          "covering all |v|<=0.8 m |")
     print("|---|---|---|---|---|---|")
     for r in args.correlations:
         for ratio in args.ratios:
@@ -676,30 +676,24 @@ def cmd_roa(args: argparse.Namespace) -> None:
 
             ep = bisect(ok, 0.08, args.max_extent, args.steps)
             ev = ep * ratio
-            d5 = _covering_spacing(ep, ev, 0.5)
-            d8 = _covering_spacing(ep, ev, 0.8)
+            d5 = _covering_spacing(ep, ev, r, 0.5)
+            d8 = _covering_spacing(ep, ev, r, 0.8)
             print(f"| {r:g} | {ratio:g} | {ep:.3f} | {ev:.3f} | {d5:.3f} | {d8:.3f} |")
-            if ev >= args.min_speed and (best is None or d5 > best[3]):
-                best = (r, ratio, ep, d5)
+            for key, fits in (("largest covering spacing for |v| <= 0.5", True),
+                              (f"largest covering spacing with e_v >= {args.min_speed}",
+                               ev >= args.min_speed)):
+                if fits and ep > 0 and (key not in best or d5 > best[key][3]):
+                    best[key] = (r, ratio, ep, d5)
     cpu = time.process_time() - t0
     print(f"\n{runs} runs in {cpu:.0f} s CPU")
-    if best is None:
-        print(f"no shape reaches e_v >= {args.min_speed} m/s")
-        return
-    r, ratio, ep, _ = best
-    ok_all, m = _roa_check(setup, tab, ep, ratio, r, args.duration, args.check_points, outer,
-                           args.hold, variants, detail=True)
-    print(f"\nbest with e_v >= {args.min_speed}: r {r:g}, e_p {ep:.3f} m, e_v {ep * ratio:.3f} "
-          f"m/s; re-checked from {args.check_points} x {len(variants)} states: "
-          f"{'PASS' if ok_all else 'FAIL'}")
-    print(_summary(m))
-    assert m.stretch_hold is not None
-    f = math.ceil(float(m.stretch_hold.max()) * 20) / 20
-    ok_d, m2 = _roa_check(setup, tab, ep, ratio, r, args.duration, args.check_points, (f, f),
-                          True, variants)
-    print(f"with a non-shrinking D' = S x {f:g}: {'PASS' if ok_d else 'FAIL'} "
-          f"(max D' value {m2.outer_value.max():.3f}); D' XY radius {f * ep:.3f} m "
-          f"around p_c")
+    if not best:
+        print("no shape verifies")
+    for key, (r, ratio, ep, _) in best.items():
+        ok_all, m = _roa_check(setup, tab, ep, ratio, r, args.duration, args.check_points,
+                               outer, args.hold, variants, detail=True)
+        print(f"\n{key}: r {r:g}, e_p {ep:.3f} m, e_v {ep * ratio:.3f} m/s; re-checked from "
+              f"{args.check_points} x {len(variants)} states: {'PASS' if ok_all else 'FAIL'}")
+        print(_summary(m))
     print(f"{time.process_time() - t0:.0f} s CPU in total")
 
 
@@ -710,14 +704,15 @@ def _outer_text(outer: tuple[float, float] | None, hold: bool) -> str:
     return f"= {what} x {outer} (position, velocity)"
 
 
-def _covering_spacing(ep: float, ev: float, v_max: float) -> float:
-    """Largest square-lattice spacing d whose lattice of domains (e_p, e_v, any r), centred
+def _covering_spacing(ep: float, ev: float, r: float, v_max: float) -> float:
+    """Largest square-lattice spacing d whose lattice of domains (e_p, e_v, r), centred
     at rest on every lattice point, covers every position with |v| <= v_max: the position
-    slice at speed v is a disc of radius e_p sqrt(1 − v²/e_v²), which must reach the
-    covering radius d/√2 of the lattice."""
+    slice at velocity v is a disc (centred at r e_p v/e_v) of radius
+    e_p sqrt(1 − r²) sqrt(1 − |v|²/e_v²), which must reach the covering radius d/√2 of
+    the lattice."""
     if ev <= v_max:
         return 0.0
-    return math.sqrt(2.0) * ep * math.sqrt(1.0 - (v_max / ev) ** 2)
+    return math.sqrt(2.0) * ep * math.sqrt(1.0 - r**2) * math.sqrt(1.0 - (v_max / ev) ** 2)
 
 
 # --------------------------------------------------------------------------------------
@@ -833,24 +828,27 @@ def cmd_braking(args: argparse.Namespace) -> None:
                 return _brake_check(setup, tab, prim, s, args.points, outer, args.hold,
                                     variants)[0]
 
-            s = bisect(ok, 1.0, args.max_scale, args.steps)
-            if s > 0:
-                _, m = _brake_check(setup, tab, prim, s, args.points, outer, args.hold, variants,
-                                    detail=True)
-                assert m.stretch is not None and m.stretch_hold is not None
-                assert m.excursion is not None
-                extra = (f"{deg(m.max_lean.max()):.2f} | {m.max_torque.max():.1f} | "
-                         f"{m.stretch.max():.2f} | {m.stretch_hold.max():.2f} | "
-                         f"{probe_text(m.probe) if m.probe is not None else '-'} | "
-                         f"{m.excursion.max():.3f}")
-            else:
-                extra = "- | - | - | - | - | -"
-            ev = g.velocity * s
-            print(
-                f"| {speed:.1f} | {a:g} | {dur:.3f} | {np.hypot(*prim.displacement):.3f} | "
-                f"{deg(lean):.2f} | {tau:.1f} | {s:.2f} | {g.position * s:.3f} | {ev:.3f} | "
-                f"{ev * math.sqrt(1 - setup.correlation**2):.3f} | {extra} |"
-            )
+            scales = args.fixed_scales or [bisect(ok, 1.0, args.max_scale, args.steps)]
+            for s in scales:
+                if s > 0:
+                    passed, m = _brake_check(setup, tab, prim, s, args.points, outer, args.hold,
+                                             variants, detail=True)
+                    assert m.stretch is not None and m.stretch_hold is not None
+                    assert m.excursion is not None
+                    extra = (f"{deg(m.max_lean.max()):.2f} | {m.max_torque.max():.1f} | "
+                             f"{m.stretch.max():.2f} | {m.stretch_hold.max():.2f} | "
+                             f"{probe_text(m.probe) if m.probe is not None else '-'} | "
+                             f"{m.excursion.max():.3f}")
+                    if args.fixed_scales:
+                        extra += f" {'pass' if passed else 'FAIL'}"
+                else:
+                    extra = "- | - | - | - | - | -"
+                ev = g.velocity * s
+                print(
+                    f"| {speed:.1f} | {a:g} | {dur:.3f} | {np.hypot(*prim.displacement):.3f} | "
+                    f"{deg(lean):.2f} | {tau:.1f} | {s:.2f} | {g.position * s:.3f} | "
+                    f"{ev:.3f} | {ev * math.sqrt(1 - setup.correlation**2):.3f} | {extra} |"
+                )
     print(f"\n{time.process_time() - t0:.0f} s CPU")
 
 
@@ -956,21 +954,23 @@ def lattice_coverage(
         vel = np.column_stack([rad * np.cos(ang), rad * np.sin(ang)])
     else:
         vel = rng.uniform(-v_max, v_max, size=(n, 2))
-    # Largest position extent of any domain bounds the lattice points to try.
+    # Largest position extent of any domain bounds the lattice points to try; the points
+    # nearest the cell go first.
     reach = max(float(np.sqrt(np.linalg.inv(s)[0, 0])) for s in shapes)
     k = math.ceil(reach / spacing) + 1
-    offs = np.arange(-k, k + 1) * spacing
+    grid = np.arange(-k, k + 1) * spacing
+    qs = np.array([(qx, qy) for qx in grid for qy in grid])
+    dist = np.hypot(*(qs - spacing / 2).T)
+    keep = dist <= reach + spacing
+    qs = qs[keep][np.argsort(dist[keep])]
     covered = np.zeros(n, dtype=bool)
-    for cv, shape in zip(centres_v, shapes, strict=True):
-        for qx in offs:
-            for qy in offs:
-                todo = ~covered
-                if not todo.any():
-                    return 1.0
-                d = np.column_stack([pos[todo] - (qx, qy), vel[todo] - cv])
-                covered[np.flatnonzero(todo)[np.einsum("ni,ij,nj->n", d, shape, d) <= 1.0]] = (
-                    True
-                )
+    for q in qs:
+        for cv, shape in zip(centres_v, shapes, strict=True):
+            todo = np.flatnonzero(~covered)
+            if todo.size == 0:
+                return 1.0
+            d = np.column_stack([pos[todo] - q, vel[todo] - cv])
+            covered[todo[np.einsum("ni,ij,nj->n", d, shape, d) <= 1.0]] = True
     return float(covered.mean())
 
 
@@ -996,12 +996,12 @@ def braking_family(
 def cmd_coverage(args: argparse.Namespace) -> None:
     """Monte Carlo coverage of free space by lattices of capture policies."""
     setup = load_setup()
-    ep, ev, r = args.regulator
     designs: list[tuple[str, FloatArray, FloatArray]] = []
-    designs.append(
-        (f"regulator S (e_p {ep:.3f}, e_v {ev:.3f}, r {r:g})", np.zeros((1, 2)),
-         correlated_shapes(np.array([ep]), np.array([ev]), np.array([r])))
-    )
+    for ep, ev, r in args.regulator or [(0.79, 0.79, -0.95)]:
+        designs.append(
+            (f"regulator S (e_p {ep:.3f}, e_v {ev:.3f}, r {r:g})", np.zeros((1, 2)),
+             correlated_shapes(np.array([ep]), np.array([ev]), np.array([r])))
+        )
     if args.brake_scales:
         speeds = [0.1 * (i + 1) for i in range(len(args.brake_scales))]
         for dirs in args.brake_directions:
@@ -1025,11 +1025,11 @@ def cmd_coverage(args: argparse.Namespace) -> None:
             c2 = lattice_coverage(cv, sh, d, args.v_max, args.samples, args.seed, disc=False)
             print(f"| {name} | {d:g} | {100 * c1:.2f} | {100 * c2:.2f} |")
         # Largest spacing reaching the target (bisection on d, disc velocities).
-        lo, hi = 0.01, 2.0
+        lo, hi = 0.02, 2.0
         if lattice_coverage(cv, sh, lo, args.v_max, args.samples, args.seed) < args.target:
             print(f"| {name} | none reaches {100 * args.target:g} % | | |")
             continue
-        for _ in range(12):
+        for _ in range(args.steps):
             mid = 0.5 * (lo + hi)
             if lattice_coverage(cv, sh, mid, args.v_max, args.samples, args.seed) >= args.target:
                 lo = mid
@@ -1037,6 +1037,75 @@ def cmd_coverage(args: argparse.Namespace) -> None:
                 hi = mid
         print(f"| {name} | largest d for {100 * args.target:g} %: {lo:.3f} | | |")
     print(f"\n{time.process_time() - t0:.1f} s CPU")
+
+
+# --------------------------------------------------------------------------------------
+# The room of the coverage target: what stopping distance allows
+# --------------------------------------------------------------------------------------
+def room_clearance(xy: FloatArray, size: float, box: float) -> FloatArray:
+    """Distance (m) from points ``xy`` (N, 2) to the walls of the ``size`` x ``size`` room
+    [0, size]² and to the ``box`` x ``box`` box at its centre (negative inside the box)."""
+    walls = np.minimum(np.minimum(xy[:, 0], size - xy[:, 0]), np.minimum(xy[:, 1],
+                                                                         size - xy[:, 1]))
+    q = np.abs(xy - size / 2) - box / 2
+    outside = np.hypot(np.maximum(q[:, 0], 0.0), np.maximum(q[:, 1], 0.0))
+    inside = np.minimum(np.maximum(q[:, 0], q[:, 1]), 0.0)
+    out: FloatArray = np.minimum(walls, outside + inside)
+    return out
+
+
+def stoppable(
+    p: FloatArray, distance: FloatArray, size: float, box: float, footprint: float
+) -> BoolArray:
+    """Whether the straight stopping path of each state stays clear.
+
+    The ball travels ``distance`` (N,) (m) along its velocity from the position of each
+    state ``p`` (N, 4); the path (sampled every 1 cm) must keep clearance >=
+    ``footprint``. A capture policy's D' must contain this path, and D' grown by the
+    footprint must be obstacle free, so this bounds the coverage any capture design
+    with that stopping distance can reach.
+    """
+    speed = np.hypot(p[:, 2], p[:, 3])
+    unit = p[:, 2:4] / np.maximum(speed, 1e-12)[:, None]
+    ok = np.ones(p.shape[0], dtype=bool)
+    steps = int(np.ceil(distance.max() / 0.01)) + 1
+    for k in range(steps + 1):
+        u = np.minimum(k * 0.01, distance)
+        ok &= room_clearance(p[:, :2] + unit * u[:, None], size, box) >= footprint
+    return ok
+
+
+def cmd_room(args: argparse.Namespace) -> None:
+    """Fraction of the coverage target's states that can stop clear of obstacles."""
+    rng = np.random.default_rng(args.seed)
+    kappa = flat_output_gain(BallbotParams())
+    ideal = math.tan(math.radians(8.0)) * kappa
+    models: dict[str, Callable[[FloatArray], FloatArray]] = {}
+    for name, table in (("regulator, plan lean", args.regulator_plan),
+                        ("regulator, worst push lean", args.regulator_worst),
+                        ("braking maneuver, 4.5 deg planned", args.braking)):
+        sp = np.concatenate([[0.0], 0.1 * np.arange(1, len(table) + 1)])
+        dist = np.concatenate([[0.0], table])
+        models[name] = lambda v, sp=sp, dist=dist: np.interp(v, sp, dist)
+    models["constant 8 deg lean, no delay (physical bound)"] = lambda v: v**2 / (2 * ideal)
+    print(f"room {args.size:g} m x {args.size:g} m, central box {args.box:g} m, footprint "
+          f"{args.footprint:g} m; {args.samples} states (seed {args.seed}), |v| <= "
+          f"{args.v_max:g} m/s uniform in the disc; path sampled every 1 cm")
+    print("| stopping model | margin m | states that stop clear % |")
+    print("|---|---|---|")
+    for margin in args.margins:
+        xy = np.zeros((0, 2))
+        while xy.shape[0] < args.samples:
+            cand = rng.uniform(0.0, args.size, size=(2 * args.samples, 2))
+            keep = room_clearance(cand, args.size, args.box) >= args.footprint + margin
+            xy = np.concatenate([xy, cand[keep]])
+        xy = xy[: args.samples]
+        rad = args.v_max * np.sqrt(rng.uniform(size=args.samples))
+        ang = rng.uniform(0.0, 2 * math.pi, size=args.samples)
+        p = np.column_stack([xy, rad * np.cos(ang), rad * np.sin(ang)])
+        for name, model in models.items():
+            ok = stoppable(p, model(rad), args.size, args.box, args.footprint)
+            print(f"| {name} | {margin:g} | {100 * ok.mean():.2f} |")
 
 
 # --------------------------------------------------------------------------------------
@@ -1098,6 +1167,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="shortest braking maneuver (s)")
     p.add_argument("--points", type=int, default=32)
     p.add_argument("--max-scale", type=float, default=8.0, help="largest S/G tried")
+    p.add_argument("--fixed-scales", type=float, nargs="*", default=None,
+                   help="evaluate these S/G instead of bisecting for the largest")
     p.add_argument("--steps", type=int, default=5, help="bisection steps")
     _outer_options(p)
     p.set_defaults(func=cmd_braking)
@@ -1112,17 +1183,39 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_scaled)
 
     p = sub.add_parser("coverage", help="Monte Carlo coverage by lattices of capture policies")
-    p.add_argument("--regulator", type=float, nargs=3, default=[0.4, 0.8, -0.8],
-                   metavar=("E_P", "E_V", "R"), help="regulator capture domain S")
+    p.add_argument("--regulator", type=float, nargs=3, action="append", default=None,
+                   metavar=("E_P", "E_V", "R"),
+                   help="regulator capture domain S (repeatable; default 0.79 0.79 -0.95)")
+    p.add_argument("--steps", type=int, default=8, help="bisection steps on d")
     p.add_argument("--brake-scales", type=float, nargs="*", default=[],
                    help="S/G of the braking members at 0.1, 0.2, ... m/s")
-    p.add_argument("--brake-directions", type=int, nargs="+", default=[8, 16])
+    p.add_argument("--brake-directions", type=int, nargs="+", default=[8, 16, 32])
     p.add_argument("--spacings", type=float, nargs="+", default=[0.5, 0.25, 0.125])
     p.add_argument("--v-max", type=float, default=0.5)
     p.add_argument("--samples", type=int, default=100_000)
     p.add_argument("--target", type=float, default=0.99)
     p.add_argument("--seed", type=int, default=0)
     p.set_defaults(func=cmd_coverage)
+
+    p = sub.add_parser("room", help="states of the room that can stop clear of obstacles")
+    p.add_argument("--size", type=float, default=5.0, help="room side (m)")
+    p.add_argument("--box", type=float, default=1.0, help="side of the central box (m)")
+    p.add_argument("--footprint", type=float, default=0.2)
+    p.add_argument("--margins", type=float, nargs="+", default=[0.3, 0.1],
+                   help="clearance beyond the footprint of the sampled states (m)")
+    p.add_argument("--v-max", type=float, default=0.5)
+    p.add_argument("--samples", type=int, default=100_000)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--regulator-plan", type=float, nargs="+",
+                   default=[0.058, 0.116, 0.182, 0.266, 0.362],
+                   help="stop distance (m) at 0.1, 0.2, ... m/s (`regulator`, plan lean)")
+    p.add_argument("--regulator-worst", type=float, nargs="+",
+                   default=[0.071, 0.143, 0.238, 0.353, 0.483],
+                   help="stop distance (m) at 0.1, 0.2, ... m/s (`regulator`, worst lean)")
+    p.add_argument("--braking", type=float, nargs="+",
+                   default=[0.05, 0.1, 0.15, 0.275, 0.437],
+                   help="stop distance (m) at 0.1, 0.2, ... m/s (`braking`)")
+    p.set_defaults(func=cmd_room)
     return ap
 
 
