@@ -429,7 +429,9 @@ def evaluate(
             res.max_lean,
             res.max_torque,
             res.saturated_ticks,
-            (res.max_domain_value <= 1) & (gv <= 1) & (res.max_lean <= lim)
+            (res.max_domain_value <= 1)
+            & (gv <= 1)
+            & (res.max_lean <= lim)
             & (res.saturated_ticks == 0),
         )
     inner = family.shapes(nt, outer=False)
@@ -437,8 +439,9 @@ def evaluate(
     k = gains.kernel_arrays()
     parts: list[dict[str, FloatArray]] = []
     for a in range(0, x0.shape[0], CHUNK):
-        res = simulate_batch(x0[a : a + CHUNK], reference, gains, monitor=(centre, outer),
-                             record=True)
+        res = simulate_batch(
+            x0[a : a + CHUNK], reference, gains, monitor=(centre, outer), record=True
+        )
         assert res.states is not None
         ps = position_state(res.states, setup.radius)  # (B, T+1, 4)
         d = ps - centre[None]
@@ -448,8 +451,9 @@ def evaluate(
         for i, fp in enumerate(PROBE_FP):
             for j, fv in enumerate(PROBE_FV):
                 e = family.start
-                sh = correlated_shapes(np.array([e[0] * fp]), np.array([e[1] * fv]),
-                                       np.array([0.0]))[0]
+                sh = correlated_shapes(
+                    np.array([e[0] * fp]), np.array([e[1] * fv]), np.array([0.0])
+                )[0]
                 probe[:, i, j] = np.einsum("bti,ij,btj->bt", d, sh, d).max(axis=1)
         gval = np.einsum("bti,ij,btj->bt", d, goal, d)
         outside = gval > 1.0
@@ -575,17 +579,22 @@ def cmd_regulator(args: argparse.Namespace) -> None:
         gains = (
             setup.gains
             if comp_deg == 5.0
-            else design_gains(setup.params, setup.gains.weights,
-                              max_lean_compensation=float(np.deg2rad(comp_deg)))
+            else design_gains(
+                setup.params, setup.gains.weights, max_lean_compensation=float(np.deg2rad(comp_deg))
+            )
         )
         x0, which = initial_states(setup, tab, p, np.zeros(2), np.zeros(2))
         m = evaluate(setup, x0, ref, centre, fam, gains=gains, detail=True)
         assert m.travel is not None and m.settle_time is not None and m.comp_saturated is not None
-        print(f"\nlean compensation limit {comp_deg:g} deg, hold {args.duration:g} s "
-              "(worst over 0/45/90 deg and over the lean variants "
-              f"{', '.join(LEAN_VARIANTS)})")
-        print("| speed m/s | stop distance m (plan lean .. worst) | settle into G s | "
-              "peak lean deg | peak torque N m | saturated runs | comp. saturated % of time |")
+        print(
+            f"\nlean compensation limit {comp_deg:g} deg, hold {args.duration:g} s "
+            "(worst over 0/45/90 deg and over the lean variants "
+            f"{', '.join(LEAN_VARIANTS)})"
+        )
+        print(
+            "| speed m/s | stop distance m (plan lean .. worst) | settle into G s | "
+            "peak lean deg | peak torque N m | saturated runs | comp. saturated % of time |"
+        )
         print("|---|---|---|---|---|---|---|")
         n_a = angles.size
         for i, s in enumerate(speeds):
@@ -649,21 +658,38 @@ def cmd_roa(args: argparse.Namespace) -> None:
     t0 = time.process_time()
     if args.shape:
         for ep, ev, r in args.shape:
-            ok, m = _roa_check(setup, tab, ep, ev / ep, r, args.duration, args.check_points,
-                               outer, args.hold, variants, detail=True)
-            print(f"S (e_p {ep:g} m, e_v {ev:g} m/s, r {r:g}), t_f {args.duration:g} s, "
-                  f"{args.check_points} x {len(variants)} states, D' "
-                  f"{_outer_text(outer, args.hold)}: {'PASS' if ok else 'FAIL'}")
+            passed, m = _roa_check(
+                setup,
+                tab,
+                ep,
+                ev / ep,
+                r,
+                args.duration,
+                args.check_points,
+                outer,
+                args.hold,
+                variants,
+                detail=True,
+            )
+            print(
+                f"S (e_p {ep:g} m, e_v {ev:g} m/s, r {r:g}), t_f {args.duration:g} s, "
+                f"{args.check_points} x {len(variants)} states, D' "
+                f"{_outer_text(outer, args.hold)}: {'PASS' if passed else 'FAIL'}"
+            )
             print("  " + _summary(m))
         print(f"{time.process_time() - t0:.0f} s CPU")
         return
     runs = 0
     best: dict[str, tuple[float, float, float, float]] = {}
-    print(f"t_f {args.duration:g} s, {args.points} boundary points x lean variants "
-          f"{', '.join(variants)}; D' {_outer_text(outer, args.hold)}; pass: G at t_f, "
-          "lean <= 8 deg, no torque saturation")
-    print("| r | e_v/e_p 1/s | e_p m | e_v m/s | lattice spacing covering all |v|<=0.5 m | "
-          "covering all |v|<=0.8 m |")
+    print(
+        f"t_f {args.duration:g} s, {args.points} boundary points x lean variants "
+        f"{', '.join(variants)}; D' {_outer_text(outer, args.hold)}; pass: G at t_f, "
+        "lean <= 8 deg, no torque saturation"
+    )
+    print(
+        "| r | e_v/e_p 1/s | e_p m | e_v m/s | lattice spacing covering all |v|<=0.5 m | "
+        "covering all |v|<=0.8 m |"
+    )
     print("|---|---|---|---|---|---|")
     for r in args.correlations:
         for ratio in args.ratios:
@@ -671,17 +697,19 @@ def cmd_roa(args: argparse.Namespace) -> None:
             def ok(ep: float, r: float = r, ratio: float = ratio) -> bool:
                 nonlocal runs
                 runs += args.points * len(variants)
-                return _roa_check(setup, tab, ep, ratio, r, args.duration, args.points, outer,
-                                  args.hold, variants)[0]
+                return _roa_check(
+                    setup, tab, ep, ratio, r, args.duration, args.points, outer, args.hold, variants
+                )[0]
 
             ep = bisect(ok, 0.08, args.max_extent, args.steps)
             ev = ep * ratio
             d5 = _covering_spacing(ep, ev, r, 0.5)
             d8 = _covering_spacing(ep, ev, r, 0.8)
             print(f"| {r:g} | {ratio:g} | {ep:.3f} | {ev:.3f} | {d5:.3f} | {d8:.3f} |")
-            for key, fits in (("largest covering spacing for |v| <= 0.5", True),
-                              (f"largest covering spacing with e_v >= {args.min_speed}",
-                               ev >= args.min_speed)):
+            for key, fits in (
+                ("largest covering spacing for |v| <= 0.5", True),
+                (f"largest covering spacing with e_v >= {args.min_speed}", ev >= args.min_speed),
+            ):
                 if fits and ep > 0 and (key not in best or d5 > best[key][3]):
                     best[key] = (r, ratio, ep, d5)
     cpu = time.process_time() - t0
@@ -689,10 +717,23 @@ def cmd_roa(args: argparse.Namespace) -> None:
     if not best:
         print("no shape verifies")
     for key, (r, ratio, ep, _) in best.items():
-        ok_all, m = _roa_check(setup, tab, ep, ratio, r, args.duration, args.check_points,
-                               outer, args.hold, variants, detail=True)
-        print(f"\n{key}: r {r:g}, e_p {ep:.3f} m, e_v {ep * ratio:.3f} m/s; re-checked from "
-              f"{args.check_points} x {len(variants)} states: {'PASS' if ok_all else 'FAIL'}")
+        ok_all, m = _roa_check(
+            setup,
+            tab,
+            ep,
+            ratio,
+            r,
+            args.duration,
+            args.check_points,
+            outer,
+            args.hold,
+            variants,
+            detail=True,
+        )
+        print(
+            f"\n{key}: r {r:g}, e_p {ep:.3f} m, e_v {ep * ratio:.3f} m/s; re-checked from "
+            f"{args.check_points} x {len(variants)} states: {'PASS' if ok_all else 'FAIL'}"
+        )
         print(_summary(m))
     print(f"{time.process_time() - t0:.0f} s CPU in total")
 
@@ -805,40 +846,47 @@ def cmd_braking(args: argparse.Namespace) -> None:
     variants = args.variants
     t0 = time.process_time()
     g = setup.goal
-    print(f"planned lean <= {args.max_lean:g} deg, T >= {args.min_duration:g} s, "
-          f"rest tail {args.tail:g} s, "
-          f"{args.points} boundary points x lean variants {', '.join(variants)}; "
-          f"D' {_outer_text(outer, args.hold)}; S = s G (library shape)")
-    print("| speed m/s | direction deg | T s | stop distance m | planned lean deg | "
-          "planned torque N m | largest s | e_p m | e_v m/s | velocity slice radius m/s | "
-          "peak lean deg | peak torque N m | needed D'/D(t) | needed D'/S | "
-          "non-shrinking r=0 D' (f_p, f_v) | largest distance from ref m |")
+    print(
+        f"planned lean <= {args.max_lean:g} deg, T >= {args.min_duration:g} s, "
+        f"rest tail {args.tail:g} s, "
+        f"{args.points} boundary points x lean variants {', '.join(variants)}; "
+        f"D' {_outer_text(outer, args.hold)}; S = s G (library shape)"
+    )
+    print(
+        "| speed m/s | direction deg | T s | stop distance m | planned lean deg | "
+        "planned torque N m | largest s | e_p m | e_v m/s | velocity slice radius m/s | "
+        "peak lean deg | peak torque N m | needed D'/D(t) | needed D'/S | "
+        "non-shrinking r=0 D' (f_p, f_v) | largest distance from ref m |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for speed in args.speeds:
         for a in args.directions:
             v0 = speed * np.array([math.cos(math.radians(a)), math.sin(math.radians(a))])
-            out = braking_primitive(setup, v0, float(np.deg2rad(args.max_lean)), args.tail,
-                                    args.min_duration)
+            out = braking_primitive(
+                setup, v0, float(np.deg2rad(args.max_lean)), args.tail, args.min_duration
+            )
             if out is None:
                 print(f"| {speed:.1f} | {a:g} | infeasible |")
                 continue
             prim, dur, lean, tau = out
 
             def ok(s: float, prim: SampledPrimitive = prim) -> bool:
-                return _brake_check(setup, tab, prim, s, args.points, outer, args.hold,
-                                    variants)[0]
+                return _brake_check(setup, tab, prim, s, args.points, outer, args.hold, variants)[0]
 
             scales = args.fixed_scales or [bisect(ok, 1.0, args.max_scale, args.steps)]
             for s in scales:
                 if s > 0:
-                    passed, m = _brake_check(setup, tab, prim, s, args.points, outer, args.hold,
-                                             variants, detail=True)
+                    passed, m = _brake_check(
+                        setup, tab, prim, s, args.points, outer, args.hold, variants, detail=True
+                    )
                     assert m.stretch is not None and m.stretch_hold is not None
                     assert m.excursion is not None
-                    extra = (f"{deg(m.max_lean.max()):.2f} | {m.max_torque.max():.1f} | "
-                             f"{m.stretch.max():.2f} | {m.stretch_hold.max():.2f} | "
-                             f"{probe_text(m.probe) if m.probe is not None else '-'} | "
-                             f"{m.excursion.max():.3f}")
+                    extra = (
+                        f"{deg(m.max_lean.max()):.2f} | {m.max_torque.max():.1f} | "
+                        f"{m.stretch.max():.2f} | {m.stretch_hold.max():.2f} | "
+                        f"{probe_text(m.probe) if m.probe is not None else '-'} | "
+                        f"{m.excursion.max():.3f}"
+                    )
                     if args.fixed_scales:
                         extra += f" {'pass' if passed else 'FAIL'}"
                 else:
@@ -888,18 +936,28 @@ def cmd_scaled(args: argparse.Namespace) -> None:
     options = replace(setup.options, boundary_points=args.points)
     prims = [palette[name].primitive for name in args.policies]
     prims += [_rest_of(palette["rest"].primitive, d) for d in args.rest_durations]
-    print(f"{args.points} boundary points at 0 and 90 deg, plan lean; D' = D x "
-          f"({options.outer_position_factor}, {options.outer_velocity_factor}); G fixed "
-          f"(e_p {setup.goal.position} m)")
-    print("| policy | t_f s | s = S/G | S e_p m | pass | max D' value | max G value | "
-          "peak lean deg | peak torque N m | sat runs | D'(0) radius m | swept D' reach m |")
+    print(
+        f"{args.points} boundary points at 0 and 90 deg, plan lean; D' = D x "
+        f"({options.outer_position_factor}, {options.outer_velocity_factor}); G fixed "
+        f"(e_p {setup.goal.position} m)"
+    )
+    print(
+        "| policy | t_f s | s = S/G | S e_p m | pass | max D' value | max G value | "
+        "peak lean deg | peak torque N m | sat runs | D'(0) radius m | swept D' reach m |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     t0 = time.process_time()
     for prim in prims:
         base = palette["rest"]
         for s in args.scales:
-            pol = MotionPolicy(prim, setup.gains, setup.goal.scaled(s), setup.goal,
-                               base.outer_factors, base.correlation)
+            pol = MotionPolicy(
+                prim,
+                setup.gains,
+                setup.goal.scaled(s),
+                setup.goal,
+                base.outer_factors,
+                base.correlation,
+            )
             rep = verify_placements(pol, options)
             r0, reach = swept_reach(pol)
             print(
@@ -981,11 +1039,15 @@ def braking_family(
     (S = 2 G) plus one member per speed and direction, S = scale x G (library shape)."""
     g = setup.goal
     cv = [np.zeros(2)]
-    sh = [correlated_shapes(np.array([2 * g.position]), np.array([2 * g.velocity]),
-                            np.array([setup.correlation]))[0]]
+    sh = [
+        correlated_shapes(
+            np.array([2 * g.position]), np.array([2 * g.velocity]), np.array([setup.correlation])
+        )[0]
+    ]
     for speed, s in zip(speeds, scales, strict=True):
-        shape = correlated_shapes(np.array([g.position * s]), np.array([g.velocity * s]),
-                                  np.array([setup.correlation]))[0]
+        shape = correlated_shapes(
+            np.array([g.position * s]), np.array([g.velocity * s]), np.array([setup.correlation])
+        )[0]
         for j in range(directions):
             a = 2 * math.pi * j / directions
             cv.append(speed * np.array([math.cos(a), math.sin(a)]))
@@ -999,23 +1061,35 @@ def cmd_coverage(args: argparse.Namespace) -> None:
     designs: list[tuple[str, FloatArray, FloatArray]] = []
     for ep, ev, r in args.regulator or [(0.79, 0.79, -0.95)]:
         designs.append(
-            (f"regulator S (e_p {ep:.3f}, e_v {ev:.3f}, r {r:g})", np.zeros((1, 2)),
-             correlated_shapes(np.array([ep]), np.array([ev]), np.array([r])))
+            (
+                f"regulator S (e_p {ep:.3f}, e_v {ev:.3f}, r {r:g})",
+                np.zeros((1, 2)),
+                correlated_shapes(np.array([ep]), np.array([ev]), np.array([r])),
+            )
         )
     if args.brake_scales:
         speeds = [0.1 * (i + 1) for i in range(len(args.brake_scales))]
         for dirs in args.brake_directions:
             cv, sh = braking_family(args.brake_scales, speeds, dirs, setup)
-            designs.append((f"braking family, {dirs} directions x {len(speeds)} speeds "
-                            "+ rest", cv, sh))
+            designs.append(
+                (f"braking family, {dirs} directions x {len(speeds)} speeds + rest", cv, sh)
+            )
     g = setup.goal
     designs.append(
-        ("palette rest trim only (S = 2 G)", np.zeros((1, 2)),
-         correlated_shapes(np.array([2 * g.position]), np.array([2 * g.velocity]),
-                           np.array([setup.correlation])))
+        (
+            "palette rest trim only (S = 2 G)",
+            np.zeros((1, 2)),
+            correlated_shapes(
+                np.array([2 * g.position]),
+                np.array([2 * g.velocity]),
+                np.array([setup.correlation]),
+            ),
+        )
     )
-    print(f"{args.samples} samples per cell (seed {args.seed}); velocities uniform in the "
-          f"disc |v| <= {args.v_max} (and the square [-{args.v_max}, {args.v_max}]^2)")
+    print(
+        f"{args.samples} samples per cell (seed {args.seed}); velocities uniform in the "
+        f"disc |v| <= {args.v_max} (and the square [-{args.v_max}, {args.v_max}]^2)"
+    )
     print("| design | d m | disc % | square % |")
     print("|---|---|---|---|")
     t0 = time.process_time()
@@ -1045,8 +1119,7 @@ def cmd_coverage(args: argparse.Namespace) -> None:
 def room_clearance(xy: FloatArray, size: float, box: float) -> FloatArray:
     """Distance (m) from points ``xy`` (N, 2) to the walls of the ``size`` x ``size`` room
     [0, size]² and to the ``box`` x ``box`` box at its centre (negative inside the box)."""
-    walls = np.minimum(np.minimum(xy[:, 0], size - xy[:, 0]), np.minimum(xy[:, 1],
-                                                                         size - xy[:, 1]))
+    walls = np.minimum(np.minimum(xy[:, 0], size - xy[:, 0]), np.minimum(xy[:, 1], size - xy[:, 1]))
     q = np.abs(xy - size / 2) - box / 2
     outside = np.hypot(np.maximum(q[:, 0], 0.0), np.maximum(q[:, 1], 0.0))
     inside = np.minimum(np.maximum(q[:, 0], q[:, 1]), 0.0)
@@ -1075,22 +1148,38 @@ def stoppable(
     return ok
 
 
+def _interpolator(x: FloatArray, y: FloatArray) -> Callable[[FloatArray], FloatArray]:
+    """Piecewise-linear y(x) (held beyond the ends)."""
+
+    def f(v: FloatArray) -> FloatArray:
+        out: FloatArray = np.interp(v, x, y)
+        return out
+
+    return f
+
+
 def cmd_room(args: argparse.Namespace) -> None:
     """Fraction of the coverage target's states that can stop clear of obstacles."""
     rng = np.random.default_rng(args.seed)
     kappa = flat_output_gain(BallbotParams())
     ideal = math.tan(math.radians(8.0)) * kappa
     models: dict[str, Callable[[FloatArray], FloatArray]] = {}
-    for name, table in (("regulator, plan lean", args.regulator_plan),
-                        ("regulator, worst push lean", args.regulator_worst),
-                        ("braking maneuver, 4.5 deg planned", args.braking)):
+    for name, table in (
+        ("regulator, plan lean", args.regulator_plan),
+        ("regulator, worst push lean", args.regulator_worst),
+        ("braking maneuver, 4.5 deg planned", args.braking),
+    ):
         sp = np.concatenate([[0.0], 0.1 * np.arange(1, len(table) + 1)])
         dist = np.concatenate([[0.0], table])
-        models[name] = lambda v, sp=sp, dist=dist: np.interp(v, sp, dist)
-    models["constant 8 deg lean, no delay (physical bound)"] = lambda v: v**2 / (2 * ideal)
-    print(f"room {args.size:g} m x {args.size:g} m, central box {args.box:g} m, footprint "
-          f"{args.footprint:g} m; {args.samples} states (seed {args.seed}), |v| <= "
-          f"{args.v_max:g} m/s uniform in the disc; path sampled every 1 cm")
+        models[name] = _interpolator(sp, dist)
+    models["constant 8 deg lean, no delay (physical bound)"] = _interpolator(
+        np.linspace(0.0, 1.0, 101), np.linspace(0.0, 1.0, 101) ** 2 / (2 * ideal)
+    )
+    print(
+        f"room {args.size:g} m x {args.size:g} m, central box {args.box:g} m, footprint "
+        f"{args.footprint:g} m; {args.samples} states (seed {args.seed}), |v| <= "
+        f"{args.v_max:g} m/s uniform in the disc; path sampled every 1 cm"
+    )
     print("| stopping model | margin m | states that stop clear % |")
     print("|---|---|---|")
     for margin in args.margins:
@@ -1112,12 +1201,23 @@ def cmd_room(args: argparse.Namespace) -> None:
 # Command line
 # --------------------------------------------------------------------------------------
 def _outer_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--outer", type=float, nargs=2, default=None, metavar=("F_P", "F_V"),
-                   help="check D' = D(t) (or S, with --hold) stretched by these position and "
-                   "velocity factors; default: D' unchecked, the needed factors are reported")
+    p.add_argument(
+        "--outer",
+        type=float,
+        nargs=2,
+        default=None,
+        metavar=("F_P", "F_V"),
+        help="check D' = D(t) (or S, with --hold) stretched by these position and "
+        "velocity factors; default: D' unchecked, the needed factors are reported",
+    )
     p.add_argument("--hold", action="store_true", help="D' stretches S and does not shrink")
-    p.add_argument("--variants", nargs="+", default=list(LEAN_VARIANTS),
-                   choices=list(LEAN_VARIANTS), help="initial lean variants")
+    p.add_argument(
+        "--variants",
+        nargs="+",
+        default=list(LEAN_VARIANTS),
+        choices=list(LEAN_VARIANTS),
+        help="initial lean variants",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -1133,62 +1233,103 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("regulator", help="stop in place with the rest regulator")
     p.add_argument("--duration", type=float, default=6.0, help="hold time (s)")
     p.add_argument("--max-speed", type=float, default=1.0, help="largest initial speed (m/s)")
-    p.add_argument("--compensation", type=float, nargs="+", default=[5.0, 7.0, 10.0],
-                   help="lean compensation limits to compare (deg)")
+    p.add_argument(
+        "--compensation",
+        type=float,
+        nargs="+",
+        default=[5.0, 7.0, 10.0],
+        help="lean compensation limits to compare (deg)",
+    )
     p.set_defaults(func=cmd_regulator)
 
     p = sub.add_parser("roa", help="largest verified S around a rest point")
     p.add_argument("--duration", type=float, default=4.0, help="t_f (s)")
     p.add_argument("--points", type=int, default=32, help="boundary points in the search")
     p.add_argument("--check-points", type=int, default=128, help="boundary points re-checked")
-    p.add_argument("--correlations", type=float, nargs="+",
-                   default=[-0.95, -0.9, -0.8, -0.6, -0.3, 0.0])
-    p.add_argument("--ratios", type=float, nargs="+", default=[1.0, 1.34, 2.0, 3.0],
-                   help="e_v/e_p (1/s)")
+    p.add_argument(
+        "--correlations", type=float, nargs="+", default=[-0.95, -0.9, -0.8, -0.6, -0.3, 0.0]
+    )
+    p.add_argument(
+        "--ratios", type=float, nargs="+", default=[1.0, 1.34, 2.0, 3.0], help="e_v/e_p (1/s)"
+    )
     p.add_argument("--max-extent", type=float, default=1.6, help="largest e_p tried (m)")
     p.add_argument("--steps", type=int, default=6, help="bisection steps")
-    p.add_argument("--shape", type=float, nargs=3, action="append", default=None,
-                   metavar=("E_P", "E_V", "R"),
-                   help="check this S (repeatable) from --check-points points instead of "
-                   "searching")
-    p.add_argument("--min-speed", type=float, default=0.8,
-                   help="required velocity extent of the best shape (m/s)")
+    p.add_argument(
+        "--shape",
+        type=float,
+        nargs=3,
+        action="append",
+        default=None,
+        metavar=("E_P", "E_V", "R"),
+        help="check this S (repeatable) from --check-points points instead of searching",
+    )
+    p.add_argument(
+        "--min-speed",
+        type=float,
+        default=0.8,
+        help="required velocity extent of the best shape (m/s)",
+    )
     _outer_options(p)
     p.set_defaults(func=cmd_roa)
 
     p = sub.add_parser("braking", help="braking maneuvers from the robot's own state")
-    p.add_argument("--speeds", type=float, nargs="+",
-                   default=[0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8])
-    p.add_argument("--directions", type=float, nargs="+", default=[0.0, 45.0, 90.0],
-                   help="directions of the initial velocity (deg)")
+    p.add_argument(
+        "--speeds", type=float, nargs="+", default=[0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8]
+    )
+    p.add_argument(
+        "--directions",
+        type=float,
+        nargs="+",
+        default=[0.0, 45.0, 90.0],
+        help="directions of the initial velocity (deg)",
+    )
     p.add_argument("--max-lean", type=float, default=4.5, help="largest planned lean (deg)")
     p.add_argument("--tail", type=float, default=1.0, help="rest held after stopping (s)")
-    p.add_argument("--min-duration", type=float, default=1.0,
-                   help="shortest braking maneuver (s)")
+    p.add_argument("--min-duration", type=float, default=1.0, help="shortest braking maneuver (s)")
     p.add_argument("--points", type=int, default=32)
     p.add_argument("--max-scale", type=float, default=8.0, help="largest S/G tried")
-    p.add_argument("--fixed-scales", type=float, nargs="*", default=None,
-                   help="evaluate these S/G instead of bisecting for the largest")
+    p.add_argument(
+        "--fixed-scales",
+        type=float,
+        nargs="*",
+        default=None,
+        help="evaluate these S/G instead of bisecting for the largest",
+    )
     p.add_argument("--steps", type=int, default=5, help="bisection steps")
     _outer_options(p)
     p.set_defaults(func=cmd_braking)
 
     p = sub.add_parser("scaled", help="palette policies at S = s G")
-    p.add_argument("--policies", nargs="+",
-                   default=["rest", "cruise_x", "rest_to_cruise_x_1_0"])
-    p.add_argument("--rest-durations", type=float, nargs="*", default=[2.0, 4.0],
-                   help="also the rest trim held this long (s)")
+    p.add_argument("--policies", nargs="+", default=["rest", "cruise_x", "rest_to_cruise_x_1_0"])
+    p.add_argument(
+        "--rest-durations",
+        type=float,
+        nargs="*",
+        default=[2.0, 4.0],
+        help="also the rest trim held this long (s)",
+    )
     p.add_argument("--scales", type=float, nargs="+", default=[0.5, 1.0, 2.0, 4.0, 8.0])
     p.add_argument("--points", type=int, default=64)
     p.set_defaults(func=cmd_scaled)
 
     p = sub.add_parser("coverage", help="Monte Carlo coverage by lattices of capture policies")
-    p.add_argument("--regulator", type=float, nargs=3, action="append", default=None,
-                   metavar=("E_P", "E_V", "R"),
-                   help="regulator capture domain S (repeatable; default 0.79 0.79 -0.95)")
+    p.add_argument(
+        "--regulator",
+        type=float,
+        nargs=3,
+        action="append",
+        default=None,
+        metavar=("E_P", "E_V", "R"),
+        help="regulator capture domain S (repeatable; default 0.79 0.79 -0.95)",
+    )
     p.add_argument("--steps", type=int, default=8, help="bisection steps on d")
-    p.add_argument("--brake-scales", type=float, nargs="*", default=[],
-                   help="S/G of the braking members at 0.1, 0.2, ... m/s")
+    p.add_argument(
+        "--brake-scales",
+        type=float,
+        nargs="*",
+        default=[],
+        help="S/G of the braking members at 0.1, 0.2, ... m/s",
+    )
     p.add_argument("--brake-directions", type=int, nargs="+", default=[8, 16, 32])
     p.add_argument("--spacings", type=float, nargs="+", default=[0.5, 0.25, 0.125])
     p.add_argument("--v-max", type=float, default=0.5)
@@ -1201,20 +1342,37 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--size", type=float, default=5.0, help="room side (m)")
     p.add_argument("--box", type=float, default=1.0, help="side of the central box (m)")
     p.add_argument("--footprint", type=float, default=0.2)
-    p.add_argument("--margins", type=float, nargs="+", default=[0.3, 0.1],
-                   help="clearance beyond the footprint of the sampled states (m)")
+    p.add_argument(
+        "--margins",
+        type=float,
+        nargs="+",
+        default=[0.3, 0.1],
+        help="clearance beyond the footprint of the sampled states (m)",
+    )
     p.add_argument("--v-max", type=float, default=0.5)
     p.add_argument("--samples", type=int, default=100_000)
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--regulator-plan", type=float, nargs="+",
-                   default=[0.058, 0.116, 0.182, 0.266, 0.362],
-                   help="stop distance (m) at 0.1, 0.2, ... m/s (`regulator`, plan lean)")
-    p.add_argument("--regulator-worst", type=float, nargs="+",
-                   default=[0.071, 0.143, 0.238, 0.353, 0.483],
-                   help="stop distance (m) at 0.1, 0.2, ... m/s (`regulator`, worst lean)")
-    p.add_argument("--braking", type=float, nargs="+",
-                   default=[0.05, 0.1, 0.15, 0.275, 0.437],
-                   help="stop distance (m) at 0.1, 0.2, ... m/s (`braking`)")
+    p.add_argument(
+        "--regulator-plan",
+        type=float,
+        nargs="+",
+        default=[0.058, 0.116, 0.182, 0.266, 0.362],
+        help="stop distance (m) at 0.1, 0.2, ... m/s (`regulator`, plan lean)",
+    )
+    p.add_argument(
+        "--regulator-worst",
+        type=float,
+        nargs="+",
+        default=[0.071, 0.143, 0.238, 0.353, 0.483],
+        help="stop distance (m) at 0.1, 0.2, ... m/s (`regulator`, worst lean)",
+    )
+    p.add_argument(
+        "--braking",
+        type=float,
+        nargs="+",
+        default=[0.05, 0.1, 0.15, 0.275, 0.437],
+        help="stop distance (m) at 0.1, 0.2, ... m/s (`braking`)",
+    )
     p.set_defaults(func=cmd_room)
     return ap
 
