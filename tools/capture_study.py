@@ -26,6 +26,10 @@ with the shipped palette's controller (Fig. 2 cascade, friction compensation):
 ``coverage``
     Monte Carlo coverage of free-space position states by a lattice of capture
     policies.
+``room``
+    Which states of the coverage target (5 m x 5 m room, central box) can stop on a
+    straight path clear of obstacles, for the measured stopping distances: an upper
+    bound of what any capture design with those distances can cover.
 
 Usage::
 
@@ -1134,9 +1138,10 @@ def stoppable(
 
     The ball travels ``distance`` (N,) (m) along its velocity from the position of each
     state ``p`` (N, 4); the path (sampled every 1 cm) must keep clearance >=
-    ``footprint``. A capture policy's D' must contain this path, and D' grown by the
-    footprint must be obstacle free, so this bounds the coverage any capture design
-    with that stopping distance can reach.
+    ``footprint`` (pass the footprint plus the XY radius of D' around the path). A
+    capture policy's D' must contain this path, and D' grown by the footprint must be
+    obstacle free, so this bounds the coverage any capture design with that stopping
+    distance can reach.
     """
     speed = np.hypot(p[:, 2], p[:, 3])
     unit = p[:, 2:4] / np.maximum(speed, 1e-12)[:, None]
@@ -1180,8 +1185,8 @@ def cmd_room(args: argparse.Namespace) -> None:
         f"{args.footprint:g} m; {args.samples} states (seed {args.seed}), |v| <= "
         f"{args.v_max:g} m/s uniform in the disc; path sampled every 1 cm"
     )
-    print("| stopping model | margin m | states that stop clear % |")
-    print("|---|---|---|")
+    print("| stopping model | margin m | D' radius m | states that stop clear % |")
+    print("|---|---|---|---|")
     for margin in args.margins:
         xy = np.zeros((0, 2))
         while xy.shape[0] < args.samples:
@@ -1192,9 +1197,10 @@ def cmd_room(args: argparse.Namespace) -> None:
         rad = args.v_max * np.sqrt(rng.uniform(size=args.samples))
         ang = rng.uniform(0.0, 2 * math.pi, size=args.samples)
         p = np.column_stack([xy, rad * np.cos(ang), rad * np.sin(ang)])
-        for name, model in models.items():
-            ok = stoppable(p, model(rad), args.size, args.box, args.footprint)
-            print(f"| {name} | {margin:g} | {100 * ok.mean():.2f} |")
+        for radius in args.radii:
+            for name, model in models.items():
+                ok = stoppable(p, model(rad), args.size, args.box, args.footprint + radius)
+                print(f"| {name} | {margin:g} | {radius:g} | {100 * ok.mean():.2f} |")
 
 
 # --------------------------------------------------------------------------------------
@@ -1352,6 +1358,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--v-max", type=float, default=0.5)
     p.add_argument("--samples", type=int, default=100_000)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--radii",
+        type=float,
+        nargs="+",
+        default=[0.0, 0.08, 0.235],
+        help="XY radius of D' around the stopping path, beyond the footprint (m)",
+    )
     p.add_argument(
         "--regulator-plan",
         type=float,
