@@ -53,7 +53,10 @@ def _trim_velocities(pset: PrimitiveSet) -> list[np.ndarray]:
 def test_set_contents_and_indexing(pset: PrimitiveSet) -> None:
     assert 35 <= len(pset) <= 45
     assert pset.omitted == ()
-    assert pset.names[:4] == ("rest", "cruise_x", "cruise_y", "cruise_xy")
+    assert pset.names[:5] == ("rest", "capture", "cruise_x", "cruise_y", "cruise_xy")
+    assert pset["capture"].duration == pytest.approx(3.0) and not np.any(
+        pset["capture"].displacement
+    )
     assert len(set(pset.names)) == len(pset)
     assert pset["rest"] is pset[0]
     assert "cruise_x_to_cruise_y_1_1" in pset
@@ -62,7 +65,7 @@ def test_set_contents_and_indexing(pset: PrimitiveSet) -> None:
     with pytest.raises(KeyError, match="no primitive named 'warp'"):
         pset["warp"]
     # cruise at about 0.5 m/s along the axes and the diagonal
-    for t in pset.trims[1:]:
+    for t in pset.trims[2:]:
         assert float(np.hypot(*t.velocity)) == pytest.approx(0.5, abs=1e-3)
     # the families of DESIGN.md 5 are all present
     names = " ".join(pset.names)
