@@ -306,3 +306,15 @@ def test_shapes_with_huge_coordinates_are_refused() -> None:
         )
     )
     assert msg.startswith("inline map: 'obstacles[0].polygon'") and "beyond" in msg
+
+
+def test_duplicate_keys_in_a_map_file_are_errors(tmp_path) -> None:
+    """The same strict YAML reading as scenario and parameter files."""
+    path = tmp_path / "dup.yaml"
+    path.write_text("bounds: [[0, 0], [3, 3]]\nresolution: 0.05\nresolution: 0.1\n")
+    with pytest.raises(MapError, match=r"duplicate key 'resolution' \(first at line 2\)"):
+        load_map(path)
+    ros = tmp_path / "ros.yaml"
+    ros.write_text("image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: 0\nnegate: 1\n")
+    with pytest.raises(MapError, match="duplicate key 'negate'"):
+        load_map(ros)

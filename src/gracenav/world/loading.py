@@ -14,7 +14,7 @@ from typing import Any
 
 import yaml
 
-from gracenav._io import yaml_error_message
+from gracenav._io import StrictLoader, yaml_error_message
 from gracenav.errors import MapError
 from gracenav.world._checks import read_bytes
 from gracenav.world.inline import map_from_description
@@ -96,7 +96,7 @@ def load_map(source: str | os.PathLike[str] | Mapping[str, Any]) -> WorldMap:
             "save the map file as UTF-8"
         ) from None
     try:
-        doc = yaml.safe_load(text)
+        doc = yaml.load(text, Loader=StrictLoader)  # safe; duplicate keys are errors
     except yaml.YAMLError as exc:
         raise MapError(
             f"{where}: not valid YAML/JSON ({yaml_error_message(exc)}); fix the syntax"
