@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from gracenav.plotting.navigation import _plt, animate_episode, draw_map
+from gracenav.plotting.navigation import _plt, animate_episode, draw_map, outer_domain_outline
 from gracenav.scenarios import load_scenario, run_scenario
 
 
@@ -64,19 +64,9 @@ def animate_full_redraw(result: Any, run: int, path: str | Path, *, fps: int = 1
         body.set_data([p[i, 0], tip[0]], [p[i, 1], tip[1]])
         pid = int(ep.policy[i])
         if pid >= 0:
-            pol = cache.setdefault(pid, lib.policy(pid))
-            start = next(
-                (
-                    e.time
-                    for e in reversed(ep.events)
-                    if e.to_policy == pid and e.time <= ep.time[i] + 1e-9
-                ),
-                0.0,
-            )
-            d = pol.outer_domain(float(ep.time[i] - start))
-            rad = float(np.sqrt(np.linalg.inv(d.xy_projection())[0, 0]))
-            dom.set_data(d.center[0] + rad * np.cos(ang), d.center[1] + rad * np.sin(ang))
-            title.set_text(f"t = {ep.time[i]:5.1f} s  {pol.name}")
+            name, xs, ys = outer_domain_outline(lib, ep, i, cache, ang)
+            dom.set_data(xs, ys)
+            title.set_text(f"t = {ep.time[i]:5.1f} s  {name}")
         else:
             dom.set_data([], [])
             title.set_text(f"t = {ep.time[i]:5.1f} s  balancing")

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["animate_episode", "draw_map", "plot_lean", "plot_paths"]
+__all__ = ["animate_episode", "draw_map", "outer_domain_outline", "plot_lean", "plot_paths"]
 
 _GIF_COLOURS = 64  # palette of the animation: white, black, greys and a few line colours
 
@@ -133,6 +133,23 @@ def plot_lean(result: Any, path: str | Path) -> Path:
     return out
 
 
+def outer_domain_outline(
+    library: Any, ep: Any, i: int, policies: dict[int, Any], angles: np.ndarray
+) -> tuple[str, np.ndarray, np.ndarray]:
+    """Name of the policy executing at tick ``i`` of episode ``ep`` (a policy, not
+    balancing mode) and the XY outline of its outer domain D'(t) at that tick, a circle
+    sampled at ``angles`` (rad). ``policies`` caches library views by row."""
+    pid = int(ep.policy[i])
+    pol = policies.setdefault(pid, library.policy(pid))
+    start = next(
+        (e.time for e in reversed(ep.events) if e.to_policy == pid and e.time <= ep.time[i] + 1e-9),
+        0.0,
+    )
+    d = pol.outer_domain(float(ep.time[i] - start))
+    rad = float(np.sqrt(np.linalg.inv(d.xy_projection())[0, 0]))
+    return pol.name, d.center[0] + rad * np.cos(angles), d.center[1] + rad * np.sin(angles)
+
+
 def animate_episode(result: Any, run: int, path: str | Path, *, fps: int = 10) -> Path:
     """A GIF of run ``run``: the ball, the body's lean, the current policy's outer domain
     and the path so far, at ``fps`` frames per simulated second (played in real time).
@@ -197,19 +214,9 @@ def animate_episode(result: Any, run: int, path: str | Path, *, fps: int = 10) -
         if pid < 0:
             dom.set_data([], [])
             return f"t = {ep.time[i]:5.1f} s  balancing"
-        pol = policies.setdefault(pid, lib.policy(pid))
-        start = next(
-            (
-                e.time
-                for e in reversed(ep.events)
-                if e.to_policy == pid and e.time <= ep.time[i] + 1e-9
-            ),
-            0.0,
-        )
-        d = pol.outer_domain(float(ep.time[i] - start))
-        rad = float(np.sqrt(np.linalg.inv(d.xy_projection())[0, 0]))
-        dom.set_data(d.center[0] + rad * np.cos(ang), d.center[1] + rad * np.sin(ang))
-        return f"t = {ep.time[i]:5.1f} s  {pol.name}"
+        name, xs, ys = outer_domain_outline(lib, ep, i, policies, ang)
+        dom.set_data(xs, ys)
+        return f"t = {ep.time[i]:5.1f} s  {name}"
 
     canvas = fig.canvas
     canvas.draw()  # lays the figure out once and renders the static background
