@@ -18,6 +18,7 @@ import dataclasses
 import hashlib
 import io
 import json
+import os
 import zipfile
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
@@ -468,8 +469,6 @@ def load_palette(
         A forced file is missing, corrupt, stale or does not match; or no matching
         palette exists and ``build`` is False.
     """
-    import os
-
     forced = path if path is not None else (os.environ.get(PALETTE_ENV) or None)
     if forced is not None:
         pal = _read_palette(Path(forced))
@@ -526,8 +525,6 @@ def build_palette_for(
     progress: bool = True,
 ) -> Palette:
     """Plan the primitive set Σ(d) and build its palette (see :func:`build_palette`)."""
-    import os
-
     from gracenav.policies import SampledPrimitive
     from gracenav.primitives import primitive_set
 
