@@ -93,8 +93,10 @@ def test_palette_has_40_verified_primitives_and_larger_variants(palette) -> None
         own = by_name[pol.primitive.name]
         assert pol.primitive is own.primitive  # variants share the primitive
         assert pol.goal_radii == own.goal_radii  # and G: graceful connections are kept
-        assert pol.scale in palette.options.scale_ladder and pol.scale > own.scale
-        assert pol.label == f"{own.name}[S={pol.scale:g}G]"
+        ladder = np.asarray(palette.options.scale_ladder)
+        assert np.min(np.abs(ladder - pol.scale)) <= 1e-12 * pol.scale  # S/G is computed
+        assert pol.scale > own.scale
+        assert pol.label == f"{own.name}[S={ladder[np.argmin(np.abs(ladder - pol.scale))]:g}G]"
     capture = max((p for p in palette if p.primitive.name == "capture"), key=lambda p: p.scale)
     assert capture.scale >= 4.0
     assert capture.start_radii.velocity >= 0.4  # catches a robot moving at 0.4 m/s
