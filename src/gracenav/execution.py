@@ -423,14 +423,21 @@ class HybridController:
         return np.asarray(xy[int(np.argmin(np.linalg.norm(xy - p[:2], axis=1)))], dtype=float)
 
     def best_policy(self, p: ArrayLike, tree: PolicyTree) -> int:
-        """The policy with the lowest cost-to-go whose S contains ``p`` (−1 if none)."""
+        """The policy with the lowest cost-to-go whose S contains ``p`` (−1 if none).
+
+        Capture regulators are candidates only when no other policy that reaches the
+        goal contains ``p``: they catch a robot the navigation policies cannot."""
         hits = self.library.start_domain_contains(np.asarray(p, dtype=float)[None, :])
         idx = hits.indices[hits.indptr[0] : hits.indptr[1]]
         if idx.size == 0:
             return -1
         cost = tree.cost_to_go[idx]
-        if not np.any(np.isfinite(cost)):
+        ok = np.isfinite(cost)
+        if not np.any(ok):
             return -1
+        capture = self.library.types.is_capture[self.library.type_index[idx]]
+        if np.any(ok & ~capture):
+            cost = np.where(capture, np.inf, cost)
         return int(idx[int(np.argmin(cost))])
 
     # -- execution -----------------------------------------------------------------

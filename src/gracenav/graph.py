@@ -84,7 +84,11 @@ def gracefully_prepares(
     quadratic form); (ii) compares the world-frame reference rows (x, y, ẋ, ẏ, ẍ, ÿ)
     and lean / lean rate at t_f1 and 0 within ``atol``; (iii) compares the gains.
     Meant for checks and tests: :func:`build_graph` decides the same relation in bulk.
+    A capture regulator is never prepared (it only catches a robot that no other
+    policy's S contains), so it is never ``second``.
     """
+    if second.policy.capture:
+        return False
     a_ref, b_ref = first.reference_positions, second.reference_positions
     if not np.all(np.abs(a_ref[-1] - b_ref[0]) <= atol):
         return False
@@ -252,7 +256,9 @@ def _type_compatibility(library: PolicyLibrary, atol: float) -> tuple[BoolArray,
     domain_ok = (lam_min >= -1e-9 * scale)[goal_of.reshape(-1)][:, start_m_of.reshape(-1)]
     cells = np.rint(types.end_offset / s)
     on_lattice = np.all(np.abs(types.end_offset - cells * s) <= atol, axis=1)
-    compat = states_ok & gains_ok & domain_ok & on_lattice[:, None]
+    # Capture regulators only catch a robot that no other policy's S contains: no
+    # policy prepares one (they are sources of the graph).
+    compat = states_ok & gains_ok & domain_ok & on_lattice[:, None] & ~types.is_capture[None, :]
     return compat, cells.astype(np.int64)
 
 

@@ -164,6 +164,8 @@ class PolicyTypes:
     path_length : ndarray, shape (T,)
         XY length of the reference path (m).
     is_trim : ndarray of bool, shape (T,)
+    is_capture : ndarray of bool, shape (T,)
+        Capture regulators (:class:`gracenav.policies.RegulatorOptions`).
     scale_group : ndarray of int, shape (T,)
         Types of one primitive at one orientation share a group: the policy sized by
         bisection and its larger-domain variants. Instantiation keeps, per group and
@@ -189,6 +191,7 @@ class PolicyTypes:
     duration: FloatArray
     path_length: FloatArray
     is_trim: BoolArray
+    is_capture: BoolArray
     scale_group: IntArray
 
     def __len__(self) -> int:
@@ -205,9 +208,10 @@ class PolicyTypes:
         st1 = np.array([p.primitive.states[-1] for p in pols]).reshape(n, 8)
         rate = [PHI_X_DOT, PHI_Y_DOT]
         corr = np.array([p.correlation for p in pols], dtype=float)
+        corr_start = np.array([p.start_shape_correlation for p in pols], dtype=float)
         r_start = np.array([[p.start_radii.position, p.start_radii.velocity] for p in pols])
         r_goal = np.array([[p.goal_radii.position, p.goal_radii.velocity] for p in pols])
-        m_start = _axis_shapes(r_start.reshape(n, 2), corr)
+        m_start = _axis_shapes(r_start.reshape(n, 2), corr_start)
         m_goal = _axis_shapes(r_goal.reshape(n, 2), corr)
         lengths = np.array(
             [np.sum(np.hypot(*np.diff(p.primitive.position[:, :2], axis=0).T)) for p in pols]
@@ -248,6 +252,7 @@ class PolicyTypes:
             "duration": per_type(np.array([p.duration for p in pols], dtype=float)),
             "path_length": per_type(lengths),
             "is_trim": per_type(np.array([p.primitive.is_trim for p in pols], dtype=bool)),
+            "is_capture": per_type(np.array([p.capture for p in pols], dtype=bool)),
             "scale_group": ORIENTATIONS * per_type(primitive_id)
             + np.tile(np.arange(ORIENTATIONS, dtype=np.int64), n),
         }
@@ -528,13 +533,19 @@ class PolicyLibrary:
         )
 
     def trim_indices(self, kind: PrimitiveKind | None = None) -> IntArray:
-        """Rows whose primitive is a trim (or of trim ``kind``: REST or CRUISE), shape (n,)."""
+        """Rows whose primitive is a trim (or of trim ``kind``: REST or CRUISE), shape (n,).
+
+        Capture regulators are not counted: they catch a moving robot, no task plans
+        into them."""
+        pols = self.palette.policies
         if kind is None:
-            wanted = np.array([p.primitive.is_trim for p in self.palette.policies], dtype=bool)
+            wanted = np.array([p.primitive.is_trim and not p.capture for p in pols], dtype=bool)
         else:
             if kind is PrimitiveKind.MANEUVER:
                 raise ConfigError("trim_indices: kind must be REST, CRUISE or None, not MANEUVER")
-            wanted = np.array([p.primitive.kind is kind for p in self.palette.policies], dtype=bool)
+            wanted = np.array(
+                [p.primitive.kind is kind and not p.capture for p in pols], dtype=bool
+            )
         if wanted.size == 0:
             return np.zeros(0, dtype=np.int64)
         return np.flatnonzero(wanted[self.palette_index]).astype(np.int64)
@@ -749,10 +760,8 @@ def _sweep(
     conservative reach of D' around each (see :func:`build_library`). ``samples``:
     :func:`_sweep_samples` of the policy's primitive, if already computed."""
     prim = policy.primitive
-    cp = policy.outer_factors[0]
     pos, cum, sel = samples if samples is not None else _sweep_samples(policy, step)
-    rp, _ = policy.radii(sel * prim.dt)
-    outer = np.asarray(rp, dtype=float) * cp
+    outer, _ = policy.outer_extents(sel * prim.dt)
     reach = outer.copy()
     if sel.size > 1:
         seg_reach = np.maximum(outer[:-1], outer[1:]) + 0.5 * np.diff(cum[sel])

@@ -38,6 +38,7 @@ from gracenav.policies import (
     DomainShape,
     MotionPolicy,
     PrimitiveKind,
+    RegulatorOptions,
     SampledPrimitive,
     VerificationOptions,
     VerificationReport,
@@ -57,12 +58,15 @@ __all__ = [
     "shipped_palette_path",
 ]
 
-PALETTE_FORMAT = 3
+PALETTE_FORMAT = 4
+#: Primitive name of the capture regulators (a rest trim held
+#: ``RegulatorOptions.duration``).
+REGULATOR_NAME = "regulate"
 #: Primitives are stored at every COARSE_STRIDE-th control tick (1/128 s) and
 #: rebuilt exactly enough (see SampledPrimitive.from_coarse) when loaded.
 COARSE_STRIDE = 8
 #: Bumped whenever the planner, controller or verification code changes results.
-ALGORITHM_VERSION = "2"
+ALGORITHM_VERSION = "3"
 #: Largest relative difference (see ControllerGains.relative_difference) between a
 #: palette's stored gains and the gains requested of it that still counts as the
 #: same design. Rebuilding the gains on another numpy/scipy build changes them by
@@ -233,6 +237,8 @@ class Palette:
                     "outer_factors": list(pol.outer_factors),
                     "correlation": pol.correlation,
                     "report": None if pol.report is None else dataclasses.asdict(pol.report),
+                    "capture": pol.capture,
+                    "start_correlation": pol.start_correlation,
                 }
             )
         arrays["header"] = np.frombuffer(json.dumps(header).encode(), dtype=np.uint8)
@@ -269,6 +275,8 @@ class Palette:
             )
             opts = dict(header["options"])
             opts["scale_ladder"] = tuple(opts["scale_ladder"])
+            if opts.get("regulator") is not None:
+                opts["regulator"] = RegulatorOptions.from_dict(opts["regulator"])
             options = VerificationOptions(**opts)
             primitive_options = PrimitiveSetOptions.from_dict(header["primitive_options"])
             primitives = []
@@ -304,6 +312,12 @@ class Palette:
                         correlation=float(meta["correlation"]),
                         report=None if rep is None else VerificationReport(**rep),
                         label=str(meta["label"]),
+                        capture=bool(meta["capture"]),
+                        start_correlation=(
+                            None
+                            if meta["start_correlation"] is None
+                            else float(meta["start_correlation"])
+                        ),
                     )
                 )
             rejected = tuple((str(n), VerificationReport(**r)) for n, r in header["rejected"])
@@ -555,6 +569,26 @@ def _size_one(
     return (base, *scaled_variants(base, options))
 
 
+def _regulators(
+    args: tuple[ControllerGains, VerificationOptions, DomainShape],
+) -> tuple[MotionPolicy, ...]:
+    """The capture regulators of ``options.regulator`` (see
+    :func:`gracenav.policies.regulator_policies`), verified."""
+    from gracenav.policies import regulator_policies
+    from gracenav.primitives import TrimPrimitive
+
+    gains, options, shape = args
+    reg = options.regulator
+    if reg is None:
+        return ()
+    zero = np.zeros(2)
+    prim = SampledPrimitive.from_primitive(
+        TrimPrimitive(REGULATOR_NAME, reg.duration, zero, zero, zero, gains.params)
+    )
+    goal = shape.radii(options.goal_position_extent)
+    return regulator_policies(prim, gains, options, goal, shape.correlation)
+
+
 def _rotation_duplicate(prim: SampledPrimitive, earlier: Sequence[SampledPrimitive]) -> str | None:
     """Name of an earlier primitive of which ``prim`` is a 90°, 180° or 270° rotation."""
     for other in earlier:
@@ -624,10 +658,14 @@ def build_palette(
             duplicates.append((prim.name, dup))
     jobs = [(p, gains, options, shape) for p in unique]
     results: list[MotionPolicy] = []
-    with Progress(len(jobs), "verifying policies", enabled=progress) as bar:
+    total = len(jobs) + (options.regulator is not None)
+    with Progress(total, "verifying policies", enabled=progress) as bar:
         if processes <= 1:
             for job in jobs:
                 results.extend(_size_one(job))
+                bar.update()
+            if options.regulator is not None:
+                results.extend(_regulators((gains, options, shape)))
                 bar.update()
         else:
             import multiprocessing as mp
@@ -635,8 +673,17 @@ def build_palette(
 
             ctx = mp.get_context("fork") if "fork" in mp.get_all_start_methods() else None
             with ProcessPoolExecutor(max_workers=processes, mp_context=ctx) as pool:
+                # The regulators (the longest job) first, so that they overlap the rest.
+                regs = (
+                    pool.submit(_regulators, (gains, options, shape))
+                    if options.regulator is not None
+                    else None
+                )
                 for sized in pool.map(_size_one, jobs):
                     results.extend(sized)
+                    bar.update()
+                if regs is not None:
+                    results.extend(regs.result())
                     bar.update()
     passed = tuple(p for p in results if p.report is not None and p.report.passed)
     rejected = tuple(

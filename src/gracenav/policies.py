@@ -37,8 +37,9 @@ domain, and torque within the limit (no saturation).
 from __future__ import annotations
 
 import enum
+import itertools
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Protocol
 
 import numpy as np
@@ -61,10 +62,15 @@ __all__ = [
     "DomainShape",
     "MotionPolicy",
     "PrimitiveKind",
+    "PushLeanTable",
+    "RegulatorOptions",
     "SampledPrimitive",
     "VerificationOptions",
     "VerificationReport",
     "domain_shape",
+    "push_lean_table",
+    "regulator_label",
+    "regulator_policies",
     "scaled_variants",
     "size_policy",
     "variant_label",
@@ -371,6 +377,140 @@ class DomainRadii:
 
 
 @dataclass(frozen=True)
+class RegulatorOptions:
+    """Capture regulators: policies that catch a moving robot and bring it to rest.
+
+    A capture regulator holds a rest reference at its instantiation point p_c for
+    ``duration`` (s). Its start domain S is centred on (p_c, 0) with its own shape
+    (velocity extent ``velocity_per_position`` × position extent, correlation
+    ``correlation`` < 0: the rest point lies ahead of a robot moving toward it), so one
+    policy catches robots moving in any direction; its goal domain is the palette's G.
+    Its outer domain D' does not shrink: uncorrelated, centred on the reference, with
+    extents ``outer_position_factor`` e_p(S) and ``outer_velocity_factor`` e_v(S) (the
+    error a push leaves does not decay geometrically while the lean settles). It is
+    verified at each size of ``position_extents`` from ``boundary_points`` states on
+    the surface of S, each started with the reference's lean and with the lean and
+    lean rate a push leaves ``push_times`` after the impulse (:func:`push_lean_table`).
+
+    Parameters
+    ----------
+    duration : float
+        t_f (s).
+    velocity_per_position : float
+        e_v / e_p of S (1/s).
+    correlation : float
+        Position-velocity correlation r of S.
+    position_extents : tuple of float
+        Sizes e_p of S to verify (m), ascending; each that passes becomes a palette
+        policy and instantiation places the largest whose swept D' fits.
+    outer_position_factor, outer_velocity_factor : float
+        D' extents over S extents.
+    boundary_points : int
+        Initial states on the surface of S per lean variant and placement.
+    push_impulses : tuple of float
+        Impulses (N s) of the push table, along one axis on the robot at rest.
+    push_times : tuple of float
+        Times after the impulse (s) whose lean and lean rate start verification runs.
+    """
+
+    duration: float = 4.0
+    velocity_per_position: float = 0.8
+    correlation: float = -0.8
+    position_extents: tuple[float, ...] = (0.2, 0.35, 0.55, 0.75, 0.9)
+    outer_position_factor: float = 1.1
+    outer_velocity_factor: float = 3.0
+    boundary_points: int = 128
+    push_impulses: tuple[float, ...] = (4.0, 8.0, 12.0, 16.0, 20.0, 24.0, 28.0, 32.0, 40.0)
+    push_times: tuple[float, ...] = (0.0, 0.1, 0.2, 0.3)
+
+    def __post_init__(self) -> None:
+        for name in ("position_extents", "push_impulses", "push_times"):
+            object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
+        ext = self.position_extents
+        ascending = all(b > a for a, b in itertools.pairwise(ext))
+        if not ext or any(not v > 0 for v in ext) or not ascending:
+            raise ConfigError(f"regulator position_extents must ascend and be > 0, got {ext}")
+        if not (self.duration > 0 and self.velocity_per_position > 0):
+            raise ConfigError("regulator duration and velocity_per_position must be positive")
+        if not -1.0 < self.correlation < 1.0:
+            raise ConfigError(f"regulator correlation must lie in (-1, 1), got {self.correlation}")
+        if self.outer_position_factor < 1 or self.outer_velocity_factor < 1:
+            raise ConfigError("regulator outer factors must be >= 1")
+        if self.boundary_points < 8:
+            raise ConfigError("regulator boundary_points must be >= 8 (the axis extremes)")
+        if any(t < 0 for t in self.push_times) or any(v <= 0 for v in self.push_impulses):
+            raise ConfigError("regulator push_times must be >= 0 and push_impulses > 0")
+
+    def start_radii(self, position_extent: float) -> DomainRadii:
+        """Extents of S of the regulator of size ``position_extent`` (m)."""
+        return DomainRadii(position_extent, position_extent * self.velocity_per_position)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, object]) -> RegulatorOptions:
+        """Inverse of :func:`dataclasses.asdict` (lists become tuples)."""
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in data.items()})  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
+class PushLeanTable:
+    """Lean and lean rate a push leaves, tabulated by the ball speed it causes.
+
+    The robot at rest, regulated to its position, is pushed along +x; ``speed``,
+    ``lean`` and ``lean_rate`` are sampled ``times`` after the impulse, one row per
+    impulse. Along the push direction: lean φ (rad, positive leaning forward),
+    lean rate (rad/s).
+
+    Attributes
+    ----------
+    times : ndarray, shape (K,)
+    speed, lean, lean_rate : ndarray, shape (J, K)
+    """
+
+    times: FloatArray
+    speed: FloatArray
+    lean: FloatArray
+    lean_rate: FloatArray
+
+    def lean_at(self, k: int, speed: ArrayLike) -> tuple[FloatArray, FloatArray]:
+        """Lean (rad) and lean rate (rad/s) along the motion ``times[k]`` after a push,
+        for ball speeds ``speed`` (m/s): linear in speed through (0, 0, 0), held beyond
+        the fastest entry."""
+        v = np.asarray(speed, dtype=float)
+        order = np.argsort(self.speed[:, k])
+        sv = np.concatenate([[0.0], self.speed[order, k]])
+        lean = np.concatenate([[0.0], self.lean[order, k]])
+        rate = np.concatenate([[0.0], self.lean_rate[order, k]])
+        return np.interp(v, sv, lean), np.interp(v, sv, rate)
+
+
+def push_lean_table(
+    gains: ControllerGains,
+    impulses: Sequence[float],
+    times: Sequence[float],
+    *,
+    params: BallbotParams | None = None,
+) -> PushLeanTable:
+    """Push the regulated robot at rest along +x with each impulse (N s) and sample its
+    speed, lean and lean rate ``times`` (s) after the push (see :class:`PushLeanTable`).
+    """
+    from gracenav.simulate import Push, simulate
+
+    plant = params if params is not None else gains.params
+    r = gains.params.ball_radius
+    dt = 1.0 / DEFAULT_CONTROL_RATE
+    t = np.asarray(times, dtype=float)
+    ticks = np.round(t / dt).astype(int)
+    ref = Reference.hold((0.0, 0.0), float(t.max(initial=0.0)) + 0.25, params=gains.params)
+    rows = []
+    for imp in impulses:
+        res = simulate(np.zeros(8), ref, gains, params=plant, disturbances=[Push(0.0, (imp, 0.0))])
+        ps = position_state(res.states, r)
+        rows.append((ps[ticks, 2], res.states[ticks, 2], res.states[ticks, 6]))
+    speed, lean, rate = (np.array([row[i] for row in rows]) for i in range(3))
+    return PushLeanTable(t, speed, lean, rate)
+
+
+@dataclass(frozen=True)
 class VerificationOptions:
     """Options of policy verification and sizing.
 
@@ -398,6 +538,8 @@ class VerificationOptions:
         policy is verified again after its bisection (:func:`scaled_variants`).
         Instantiation places the largest verified size whose swept D' fits the map:
         large domains in open space, the bisected size near walls.
+    regulator : RegulatorOptions or None
+        The palette's capture regulators (None: none).
     """
 
     boundary_points: int = 64
@@ -409,8 +551,11 @@ class VerificationOptions:
     bisection_steps: int = 6
     shape_horizon: float = 1.0
     scale_ladder: tuple[float, ...] = (3.0, 4.0, 6.0, 8.0)
+    regulator: RegulatorOptions | None = field(default_factory=RegulatorOptions)
 
     def __post_init__(self) -> None:
+        if isinstance(self.regulator, dict):
+            object.__setattr__(self, "regulator", RegulatorOptions.from_dict(self.regulator))
         ladder = tuple(float(v) for v in self.scale_ladder)
         object.__setattr__(self, "scale_ladder", ladder)
         if any(not b > a for a, b in zip((self.max_scale, *ladder), ladder, strict=False)):
@@ -535,8 +680,16 @@ class MotionPolicy:
         Verification outcome, when verified.
     label : str
         Name of a larger-domain variant of the palette's policy for the same primitive
-        (see :func:`scaled_variants`), e.g. ``"rest[S=4G]"``; empty for the policy sized
-        by bisection, which is named after its primitive.
+        (see :func:`scaled_variants`), e.g. ``"rest[S=4G]"``, or of a capture
+        regulator (:func:`regulator_label`); empty for the policy sized by bisection,
+        which is named after its primitive.
+    capture : bool
+        A capture regulator (:class:`RegulatorOptions`): S has its own correlation
+        ``start_correlation`` (and its own e_v/e_p), D'(t) does not shrink (uncorrelated,
+        ``outer_factors`` × the extents of S, centred on the reference), and the hybrid
+        controller starts it only when no other policy's S contains the state.
+    start_correlation : float or None
+        Correlation of S when it differs from the other domains' (capture regulators).
     """
 
     primitive: SampledPrimitive
@@ -547,6 +700,8 @@ class MotionPolicy:
     correlation: float = 0.0
     report: VerificationReport | None = None
     label: str = ""
+    capture: bool = False
+    start_correlation: float | None = None
 
     @property
     def name(self) -> str:
@@ -571,21 +726,45 @@ class MotionPolicy:
         rv = self.start_radii.velocity * (self.goal_radii.velocity / self.start_radii.velocity) ** s
         return rp, rv
 
+    @property
+    def start_shape_correlation(self) -> float:
+        """Correlation of S."""
+        return self.correlation if self.start_correlation is None else self.start_correlation
+
+    def domain_correlation(self, t: float) -> float:
+        """Correlation of D(t): the shared one, or for a capture regulator linear in t
+        from that of S to that of G."""
+        s = min(max(float(t) / self.duration, 0.0), 1.0)
+        return (1.0 - s) * self.start_shape_correlation + s * self.correlation
+
     def domain(self, t: float) -> EllipsoidalDomain:
         """D(t), in the policy's own frame."""
         rp, rv = self.radii(t)
         return EllipsoidalDomain(
             self.primitive.position_state(t),
-            correlated_shape(float(rp), float(rv), self.correlation),
+            correlated_shape(float(rp), float(rv), self.domain_correlation(t)),
         )
+
+    def outer_extents(self, t: ArrayLike) -> tuple[FloatArray, FloatArray]:
+        """Position (m) and velocity (m/s) extents of D'(t): the outer factors times
+        those of D(t), or for a capture regulator times those of S at every t."""
+        cp, cv = self.outer_factors
+        if self.capture:
+            shape = np.shape(np.asarray(t, dtype=float))
+            return (
+                np.full(shape, self.start_radii.position * cp),
+                np.full(shape, self.start_radii.velocity * cv),
+            )
+        rp, rv = self.radii(t)
+        return np.asarray(rp * cp, dtype=float), np.asarray(rv * cv, dtype=float)
 
     def outer_domain(self, t: float) -> EllipsoidalDomain:
         """D'(t) ⊃ D(t), in the policy's own frame."""
-        rp, rv = self.radii(t)
-        cp, cv = self.outer_factors
+        rp, rv = self.outer_extents(t)
+        corr = 0.0 if self.capture else self.correlation
         return EllipsoidalDomain(
             self.primitive.position_state(t),
-            correlated_shape(float(rp) * cp, float(rv) * cv, self.correlation),
+            correlated_shape(float(rp), float(rv), corr),
         )
 
     @property
@@ -602,10 +781,10 @@ class MotionPolicy:
         """D'(t) at every control tick for the compiled loop: centres (T+1, 4) and
         shape matrices (T+1, 4, 4), in the policy's own frame."""
         t = np.arange(self.primitive.num_ticks + 1) * self.primitive.dt
-        rp, rv = self.radii(t)
-        cp, cv = self.outer_factors
+        rp, rv = self.outer_extents(t)
         # All D'(t) are scaled copies of one shape: P(t) = P(0) · (ρ(0)/ρ(t))².
-        base = correlated_shape(float(rp[0]) * cp, float(rv[0]) * cv, self.correlation)
+        corr = 0.0 if self.capture else self.correlation
+        base = correlated_shape(float(rp[0]), float(rv[0]), corr)
         shapes = base[None] * ((rp[0] / rp) ** 2)[:, None, None]
         return np.ascontiguousarray(self.primitive.position[:, :4]), shapes
 
@@ -619,6 +798,8 @@ def verify_policy(
     options: VerificationOptions | None = None,
     *,
     params: BallbotParams | None = None,
+    push_leans: PushLeanTable | None = None,
+    boundary_points: int | None = None,
 ) -> VerificationReport:
     """Verify a policy on the 3D model from points on the surface of its start domain.
 
@@ -628,6 +809,12 @@ def verify_policy(
     options : VerificationOptions, optional
     params : BallbotParams, optional
         Plant parameters (default: the controller's nominal ones).
+    push_leans : PushLeanTable, optional
+        Also start every boundary point with the lean and lean rate a push leaves at
+        each of the table's times, at the point's speed and along its velocity (added
+        to the reference's), not only with the reference's.
+    boundary_points : int, optional
+        Default ``options.boundary_points``.
 
     Returns
     -------
@@ -635,7 +822,7 @@ def verify_policy(
     """
     options = options if options is not None else VerificationOptions()
     prim = policy.primitive
-    u = sphere_points(options.boundary_points)
+    u = sphere_points(boundary_points or options.boundary_points)
     # Map unit-sphere points onto the surface of S: p = c + L u with L Lᵀ = P⁻¹.
     ell = np.linalg.cholesky(np.linalg.inv(policy.start_domain.shape_matrix))
     p0 = prim.position[0, :4] + u @ ell.T
@@ -644,6 +831,18 @@ def verify_policy(
     rate = x_plan[6:8]
     r = policy.gains.params.ball_radius
     x0 = state_from_position(p0, r, lean=lean, lean_rate=rate)
+    if push_leans is not None:
+        speed = np.hypot(p0[:, 2], p0[:, 3])
+        unit = p0[:, 2:4] / np.maximum(speed, 1e-12)[:, None]
+        variants = [x0]
+        for k in range(push_leans.times.size):
+            dl, dr = push_leans.lean_at(k, speed)
+            variants.append(
+                state_from_position(
+                    p0, r, lean=lean + unit * dl[:, None], lean_rate=rate + unit * dr[:, None]
+                )
+            )
+        x0 = np.concatenate(variants)
     res = simulate_batch(
         x0,
         prim.reference(),
@@ -689,8 +888,11 @@ def verify_placements(
     options: VerificationOptions | None = None,
     *,
     params: BallbotParams | None = None,
+    push_leans: PushLeanTable | None = None,
+    boundary_points: int | None = None,
 ) -> VerificationReport:
-    """Verify a policy at every placement instantiation uses.
+    """Verify a policy at every placement instantiation uses (``push_leans`` and
+    ``boundary_points`` as in :func:`verify_policy`).
 
     Instantiation places policies at 0°, 90°, 180° and 270°; 180° is an exact
     symmetry of the 3D model, so the 0° and 90° placements cover all four. Returns
@@ -698,11 +900,78 @@ def verify_placements(
     """
     reports = [
         verify_policy(
-            replace(policy, primitive=policy.primitive.rotated(k)), options, params=params
+            replace(policy, primitive=policy.primitive.rotated(k)),
+            options,
+            params=params,
+            push_leans=push_leans,
+            boundary_points=boundary_points,
         )
         for k in (0, 1)
     ]
     return _worse(*reports)
+
+
+def regulator_label(name: str, position_extent: float) -> str:
+    """Name of the capture regulator of primitive ``name`` whose S has position extent
+    ``position_extent`` (m), e.g. ``"regulate[ep=0.55m]"``."""
+    return f"{name}[ep={position_extent:g}m]"
+
+
+def regulator_policies(
+    primitive: SampledPrimitive,
+    gains: ControllerGains,
+    options: VerificationOptions,
+    goal: DomainRadii,
+    goal_correlation: float,
+    *,
+    push_leans: PushLeanTable | None = None,
+    progress: Callable[[], None] | None = None,
+) -> tuple[MotionPolicy, ...]:
+    """The capture regulators of ``options.regulator``, each verified at both placements.
+
+    Parameters
+    ----------
+    primitive : SampledPrimitive
+        A rest trim lasting the regulator's duration.
+    gains : ControllerGains
+    options : VerificationOptions
+    goal : DomainRadii
+        The palette's G (extents) and ``goal_correlation`` its correlation.
+    push_leans : PushLeanTable, optional
+        Default: :func:`push_lean_table` of the regulator options.
+    progress : callable, optional
+        Called after each size.
+
+    Returns
+    -------
+    tuple of MotionPolicy
+        One per size, ascending, each with its report (passed or not).
+    """
+    reg = options.regulator
+    if reg is None:
+        return ()
+    if push_leans is None:
+        push_leans = push_lean_table(gains, reg.push_impulses, reg.push_times)
+    out = []
+    for extent in reg.position_extents:
+        pol = MotionPolicy(
+            primitive,
+            gains,
+            reg.start_radii(extent),
+            goal,
+            (reg.outer_position_factor, reg.outer_velocity_factor),
+            goal_correlation,
+            label=regulator_label(primitive.name, extent),
+            capture=True,
+            start_correlation=reg.correlation,
+        )
+        report = verify_placements(
+            pol, options, push_leans=push_leans, boundary_points=reg.boundary_points
+        )
+        out.append(replace(pol, report=report))
+        if progress is not None:
+            progress()
+    return tuple(out)
 
 
 def size_policy(

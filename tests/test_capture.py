@@ -1,0 +1,210 @@
+"""Capture regulators: verified policies that catch a moving robot and bring it to rest."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from gracenav import BallbotParams, ConfigError
+from gracenav.execution import EventReason, HybridController, TaskStatus
+from gracenav.graph import build_graph, gracefully_prepares
+from gracenav.library import build_library
+from gracenav.palette import REGULATOR_NAME, load_palette
+from gracenav.policies import RegulatorOptions, push_lean_table, regulator_label
+from gracenav.simulate import (
+    Push,
+    Reference,
+    position_state,
+    simulate,
+    simulate_batch,
+    state_from_position,
+)
+from gracenav.world import load_map
+
+PARAMS = BallbotParams()
+
+
+@pytest.fixture(scope="module")
+def palette():
+    return load_palette()
+
+
+@pytest.fixture(scope="module")
+def regulators(palette):
+    return [p for p in palette if p.capture]
+
+
+@pytest.fixture(scope="module")
+def room():
+    """A free 5 m × 5 m room (walls at the map edge)."""
+    return load_map({"bounds": [[0.0, 0.0], [5.0, 5.0]], "resolution": 0.05})
+
+
+def test_palette_has_every_regulator_size_verified(palette, regulators) -> None:
+    reg = palette.options.regulator
+    assert reg is not None
+    assert [p.start_radii.position for p in regulators] == list(reg.position_extents)
+    for pol in regulators:
+        rep = pol.report
+        # 2 placements × boundary points × (the plan lean + one per push time).
+        assert rep.runs == 2 * reg.boundary_points * (1 + len(reg.push_times))
+        assert rep.passed and rep.saturated_runs == 0
+        assert rep.max_outer_value <= 1.0 and rep.max_goal_value <= 1.0
+        assert rep.max_lean <= palette.options.lean_limit
+        assert pol.name == regulator_label(REGULATOR_NAME, pol.start_radii.position)
+        assert pol.primitive.duration == pytest.approx(reg.duration, abs=1e-12)
+        # G is the palette's: a captured robot continues on the rest trim.
+        assert pol.goal_radii == palette["rest"].goal_radii
+        assert pol.correlation == palette["rest"].correlation
+        assert pol.start_shape_correlation == reg.correlation
+    largest = regulators[-1]
+    # Catches a robot moving at 0.7 m/s in any direction.
+    assert largest.start_radii.velocity >= 0.7
+
+
+def test_outer_domain_does_not_shrink_and_contains_the_start_domain(regulators) -> None:
+    pol = regulators[-1]
+    centres, shapes = pol.outer_monitor()
+    np.testing.assert_array_equal(shapes, np.broadcast_to(shapes[0], shapes.shape))
+    np.testing.assert_array_equal(centres, np.zeros_like(centres))
+    assert pol.outer_domain(0.0).contains_domain(pol.start_domain)
+    assert pol.outer_domain(pol.duration).contains_domain(pol.goal_domain)
+    # Uncorrelated: the XY radius is the factor times e_p of S.
+    q = pol.outer_domain(1.0).xy_projection()
+    np.testing.assert_allclose(
+        q, np.eye(2) / (pol.outer_factors[0] * pol.start_radii.position) ** 2, rtol=1e-12
+    )
+
+
+@pytest.mark.parametrize("which", [0, -1])
+def test_regulator_holds_from_states_the_verifier_never_used(palette, regulators, which) -> None:
+    """Random interior and near-boundary states of S, with a push lean at a random time
+    after the push (not one of the verified times), on the 3D model: inside D' at every
+    tick, in G at t_f, no saturation, lean within the limit."""
+    pol = regulators[which]
+    reg = palette.options.regulator
+    table = push_lean_table(pol.gains, reg.push_impulses, np.linspace(0.0, 0.3, 13))
+    rng = np.random.default_rng(2026)
+    n = 400
+    u = rng.normal(size=(n, 4))
+    u *= rng.uniform(0.5, 1.0, size=(n, 1)) ** 0.25 / np.linalg.norm(u, axis=1, keepdims=True)
+    ell = np.linalg.cholesky(np.linalg.inv(pol.start_domain.shape_matrix))
+    p0 = u @ ell.T
+    speed = np.hypot(p0[:, 2], p0[:, 3])
+    unit = p0[:, 2:] / np.maximum(speed, 1e-12)[:, None]
+    k = rng.integers(0, table.times.size, size=n)
+    lean = np.zeros((n, 2))
+    rate = np.zeros((n, 2))
+    for kk in np.unique(k):
+        m = k == kk
+        dl, dr = table.lean_at(int(kk), speed[m])
+        lean[m], rate[m] = unit[m] * dl[:, None], unit[m] * dr[:, None]
+    r = PARAMS.ball_radius
+    x0 = state_from_position(p0, r, lean=lean, lean_rate=rate)
+    res = simulate_batch(x0, pol.primitive.reference(), pol.gains, monitor=pol.outer_monitor())
+    assert np.max(res.max_domain_value) <= 1.0
+    assert np.max(pol.goal_domain.value(position_state(res.final_states, r))) <= 1.0
+    assert np.count_nonzero(res.saturated_ticks) == 0
+    assert np.max(res.max_lean) <= palette.options.lean_limit
+
+
+def test_push_lean_table_is_linear_for_small_pushes_and_conserves_momentum() -> None:
+    """Right after an impulse I on the body centre of mass, the angular momentum about
+    the floor contact is I (r + ℓ) (the floor's impulsive reaction acts through the
+    contact; the drive torque is internal); the response is linear in I while nothing
+    saturates."""
+    gains = load_palette().gains
+    table = push_lean_table(gains, (2.0, 4.0), (0.0, 0.1))
+    np.testing.assert_allclose(table.speed[1], 2.0 * table.speed[0], rtol=0.02)
+    np.testing.assert_allclose(table.lean_rate[1], 2.0 * table.lean_rate[0], rtol=0.02)
+    assert table.lean[0, 0] == 0.0  # position and lean are continuous at the impulse
+    assert table.lean_rate[0, 0] > 0.0  # the body starts leaning along the push
+    impulse = 4.0
+    ref = Reference.hold((0.0, 0.0), 0.01, params=PARAMS)
+    res = simulate(np.zeros(8), ref, gains, disturbances=[Push(0.0, (impulse, 0.0))])
+    x = res.states[0]
+    r, ell = PARAMS.ball_radius, PARAMS.body_com_height
+    v = r * (x[4] + x[6])  # ball centre velocity ẋ
+    phi_dot = x[6]
+    momentum = (
+        (PARAMS.ball_inertia / r + PARAMS.ball_mass * r) * v
+        + PARAMS.body_mass * (r + ell) * (v + ell * phi_dot)
+        + PARAMS.body_inertia_y * phi_dot
+    )
+    assert momentum == pytest.approx(impulse * (r + ell), rel=1e-9)
+    assert v == pytest.approx(table.speed[1, 0], rel=1e-12)
+
+
+def test_regulator_options_are_checked() -> None:
+    with pytest.raises(ConfigError, match="ascend"):
+        RegulatorOptions(position_extents=(0.5, 0.2))
+    with pytest.raises(ConfigError, match="correlation"):
+        RegulatorOptions(correlation=-1.0)
+    assert RegulatorOptions.from_dict(dataclasses.asdict(RegulatorOptions())) == RegulatorOptions()
+
+
+def test_no_policy_prepares_a_regulator_and_regulators_hand_over_to_rest(palette, room) -> None:
+    lib = build_library(palette, room, footprint_radius=0.2, max_halvings=0)
+    graph = build_graph(lib)
+    capture = lib.types.is_capture[lib.type_index]
+    assert np.any(capture)
+    _, dst = graph.edges()
+    assert not np.any(capture[dst])
+    # Every regulator prepares the rest trim at its own point (G ⊂ S of rest).
+    rest = lib.trim_indices()
+    for i in np.flatnonzero(capture)[:40]:
+        succ = graph.successors(int(i))
+        assert succ.size > 0
+        same = [j for j in succ if np.all(lib.start_xy[j] == lib.start_xy[i])]
+        assert any(j in rest for j in same)
+        assert gracefully_prepares(lib.policy(int(i)), lib.policy(int(same[0])))
+        assert not gracefully_prepares(lib.policy(int(same[0])), lib.policy(int(i)))
+    # Not goals: trims exclude them.
+    assert not np.any(capture[rest])
+
+
+def test_open_space_states_up_to_half_a_metre_per_second_are_covered(palette) -> None:
+    """At spacing d, the regulators alone cover every position state with |v| <= 0.5 m/s
+    whose regulator fits (brute force on random states): the largest S catches a robot
+    at 0.5 m/s up to ≈0.9 m behind its rest point and its D' (radius 1.1 e_p) grown by
+    the footprint needs 1.19 m of clearance there, so states with clearance >= 2.1 m."""
+    room = load_map({"bounds": [[0.0, 0.0], [7.0, 7.0]], "resolution": 0.05})
+    lib = build_library(palette, room, footprint_radius=0.2, max_halvings=0)
+    rng = np.random.default_rng(3)
+    xy = rng.uniform(2.1, 4.9, size=(4000, 2))
+    ang = rng.uniform(0, 2 * np.pi, 4000)
+    sp = 0.5 * np.sqrt(rng.uniform(size=4000))
+    pts = np.column_stack([xy, sp * np.cos(ang), sp * np.sin(ang)])
+    hits = lib.start_domain_contains(pts)
+    capture = lib.types.is_capture[lib.type_index]
+    by_capture = np.asarray(hits[:, np.flatnonzero(capture)].sum(axis=1)).ravel() > 0
+    assert np.all(by_capture)
+
+
+def test_a_pushed_robot_is_caught_by_a_regulator_and_reaches_the_goal(palette, room) -> None:
+    """A state moving at 0.55 m/s in the open, outside every navigation policy's S, is
+    caught by a capture regulator, not by balancing mode, and the goal is reached."""
+    lib = build_library(palette, room, footprint_radius=0.2, max_halvings=0)
+    graph = build_graph(lib)
+    hc = HybridController(lib, graph)
+    # The first of a grid of states near the centre, moving at 0.55 m/s, that only
+    # regulators contain.
+    ang = np.deg2rad(np.arange(0, 360, 15))
+    xy = np.array([[2.3, 2.4], [2.6, 2.2], [2.45, 2.55]])
+    cand = np.array([[x, y, 0.55 * np.cos(a), 0.55 * np.sin(a)] for x, y in xy for a in ang])
+    capture_row = lib.types.is_capture[lib.type_index]
+    hits = lib.start_domain_contains(cand)
+    need = [
+        k for k in range(len(cand)) if hits[k].indices.size and np.all(capture_row[hits[k].indices])
+    ]
+    assert need, "some state near the centre must need a regulator"
+    p0 = cand[need[0]]
+    idx = hits[need[0]].indices
+    x0 = state_from_position(p0, PARAMS.ball_radius)
+    ep = hc.run(x0, [np.array([1.0, 1.0, 0.0, 0.0])])
+    assert ep.status is TaskStatus.GOAL_REACHED
+    assert ep.events[0].to_policy in idx
+    assert lib.policy(ep.events[0].to_policy).policy.capture
+    assert not any(e.reason is EventReason.BALANCING for e in ep.events)
