@@ -163,8 +163,14 @@ KEYS = [
     ({"map": {"ros_map": 5}}, "'map.ros_map'"),
     ({"map": {"ros_map": "x.yaml", "bounds": [[0, 0], [1, 1]]}}, "unknown key(s) 'map.bounds'"),
     ({"map.bounds": [[0, 0], [1e5, 1e5]]}, "cells"),
-    ({"robot.footprint_radius": -0.1}, "'robot.footprint_radius' must be >= 0 m"),
-    ({"robot.footprint_radius": 1e9}, "'robot.footprint_radius' must be <= 5 m"),
+    (
+        {"robot.footprint_radius": -0.1},
+        "'robot.footprint_radius' must be a number in [0, 5] m, got -0.1",
+    ),
+    (
+        {"robot.footprint_radius": 1e9},
+        "'robot.footprint_radius' must be a number in [0, 5] m, got 1000000000.0",
+    ),
     ({"robot.footprint_radius": "wide"}, "'robot.footprint_radius' must be a finite number"),
     ({"planner.cost": "money"}, "'planner.cost' must be one of time, distance"),
     ({"planner.max_halvings": -1}, "'planner.max_halvings' must be an integer in [0, 20]"),
@@ -187,10 +193,16 @@ KEYS = [
     ({"simulation.seed": -1}, "'simulation.seed' must be an integer in [0, 4294967295]"),
     ({"simulation.seed": 2**70}, "'simulation.seed'"),
     ({"simulation.seed": 1.5}, "'simulation.seed'"),
-    ({"simulation.position_noise_std": -0.01}, "'simulation.position_noise_std' must be >= 0"),
-    ({"simulation.max_time": 0}, "'simulation.max_time' must be positive s"),
-    ({"simulation.max_time": -5}, "'simulation.max_time' must be positive"),
-    ({"simulation.max_time": "10s"}, "'simulation.max_time' must be a finite number s"),
+    (
+        {"simulation.position_noise_std": -0.01},
+        "'simulation.position_noise_std' must be a number in [0, 1] m, got -0.01",
+    ),
+    ({"simulation.max_time": 0}, "'simulation.max_time' must be a positive number (s), got 0"),
+    ({"simulation.max_time": -5}, "'simulation.max_time' must be a positive number (s), got -5"),
+    (
+        {"simulation.max_time": "10s"},
+        "'simulation.max_time' must be a finite number (s), got '10s'",
+    ),
     ({"simulation.max_time": float("inf")}, "'simulation.max_time' must be a finite number"),
     ({"simulation.max_time": 10**400}, "'simulation.max_time' must be a finite number"),
     ({"simulation.max_time": 1e9}, "more than the budget of 1800 s"),
@@ -200,7 +212,7 @@ KEYS = [
     ({"disturbances": [{"kind": "push", "time": 1.0}]}, "missing key 'disturbances[0].impulse'"),
     (
         {"disturbances": [{"kind": "push", "time": -1, "impulse": [10, 0]}]},
-        "'disturbances[0].time' must be >= 0 s",
+        "'disturbances[0].time' must be a number >= 0 s, got -1",
     ),
     (
         {"disturbances": [{"kind": "push", "time": 50, "impulse": [10, 0]}]},
