@@ -556,9 +556,15 @@ def test_leftovers_of_a_killed_run_are_recovered(tmp_path, capsys) -> None:
         (["plot", "primitives", "--out", "p"], "no suffix is not a figure format"),
         (["plot", "domain", "rest_to_cruise_x_2_0", "--out", "TMP"], "is a directory"),
         (["plot", "library", "MAP", "--out", "l.png", "--max-halvings", "8"], "budget"),
-        (["plot", "library", "MAP", "--out", "l.png", "--footprint", "-1"], "expected a number"),
+        (
+            ["plot", "library", "MAP", "--out", "l.png", "--footprint", "-1"],
+            "--footprint: expected a number in [0, 5] m, got '-1'",
+        ),
         (["plot", "library", "MAP", "--out", "l.png", "--max-halvings", "1.5"], "integer"),
-        (["plot", "primitives", "--d", "0", "--out", "p.png"], "expected a number >= 0.1"),
+        (
+            ["plot", "primitives", "--d", "0", "--out", "p.png"],
+            "--d: expected a number in [0.1, 2] m, got '0'",
+        ),
     ],
 )
 def test_plot_outputs_checked_up_front(tmp_path, capsys, argv, message) -> None:
