@@ -716,3 +716,193 @@ def test_fuzz_mutations_of_a_valid_scenario(data: st.DataObject) -> None:
         return
     assert math.isfinite(sc.max_time) and sc.max_time * len(sc.starts) <= 1800
     assert all(math.isfinite(v) for s in (*sc.starts, *sc.goals) for v in s)
+
+
+# -- the schema layer: gracenav._validate.Fields -------------------------------------------
+# Scenario, parameter and map documents are all read through these readers; each test
+# asserts the exact message shape: "SOURCE: 'KEY.PATH' must be ..., got VALUE", one line.
+
+
+@pytest.mark.parametrize(
+    ("limits", "text"),
+    [
+        ({}, "a finite number"),
+        ({"unit": "m"}, "a finite number (m)"),
+        ({"positive": True, "unit": "m"}, "a positive number (m)"),
+        ({"minimum": 0.0, "unit": "s"}, "a number >= 0 s"),
+        ({"maximum": 600.0, "unit": "s"}, "a number <= 600 s"),
+        ({"minimum": 0.0, "maximum": 5.0, "unit": "m"}, "a number in [0, 5] m"),
+        ({"positive": True, "maximum": 600.0, "unit": "s"}, "a number in (0, 600] s"),
+        ({"positive": True, "minimum": 2.0}, "a number >= 2"),
+        ({"integer": True, "minimum": 0, "maximum": 2**32 - 1}, "an integer in [0, 4294967295]"),
+        ({"integer": True, "minimum": 1}, "an integer >= 1"),
+    ],
+)
+def test_number_range_words_every_kind_of_limit(limits: dict[str, Any], text: str) -> None:
+    from gracenav._validate import number_range
+
+    assert number_range(**limits) == text
+
+
+def _refusal(read: Any) -> str:
+    from gracenav.errors import ConfigError, MapError
+
+    with pytest.raises((ConfigError, MapError)) as info:
+        read()
+    msg = str(info.value)
+    assert "\n" not in msg and "np." not in msg
+    return msg
+
+
+def test_fields_number_messages() -> None:
+    import numpy as np
+
+    from gracenav._validate import Fields
+    from gracenav.errors import MapError
+
+    doc = {"radius": -1, "quoted": "0.5", "huge": 10**400, "np": np.float64(-1.5), "t": True}
+    f = Fields(doc, "obstacles[2].circle", "map.yaml", error=MapError)
+    assert _refusal(lambda: f.number("radius", positive=True, unit="m")) == (
+        "map.yaml: 'obstacles[2].circle.radius' must be a positive number (m), got -1"
+    )
+    assert _refusal(lambda: f.number("quoted", unit="m")) == (
+        "map.yaml: 'obstacles[2].circle.quoted' must be a finite number (m), got '0.5' "
+        "(a string: write numbers without quotes)"
+    )
+    assert _refusal(lambda: f.number("huge")) == (
+        "map.yaml: 'obstacles[2].circle.huge' must be a finite number, got ~1e400"
+    )
+    assert _refusal(lambda: f.number("np", minimum=0.0, maximum=1.0)) == (
+        "map.yaml: 'obstacles[2].circle.np' must be a number in [0, 1], got -1.5"
+    )
+    assert _refusal(lambda: f.number("t")) == (
+        "map.yaml: 'obstacles[2].circle.t' must be a finite number, got true"
+    )
+    assert _refusal(lambda: f.number("absent")) == (
+        "map.yaml: missing key 'obstacles[2].circle.absent'"
+    )
+    assert f.number("absent", 0.25) == 0.25
+    with pytest.raises(MapError):  # the error type given, not ConfigError
+        f.number("radius", positive=True)
+
+
+def test_check_number_for_function_arguments() -> None:
+    import numpy as np
+
+    from gracenav._validate import check_number
+    from gracenav.errors import ConfigError
+
+    assert check_number(np.float32(0.5), "resolution", "WorldMap") == 0.5
+    assert _refusal(lambda: check_number(np.int64(10), "size", "office_map", minimum=14.0)) == (
+        "office_map: 'size' must be a number >= 14, got 10"
+    )
+    with pytest.raises(ConfigError):
+        check_number(np.bool_(True), "size", "office_map")
+
+
+def test_fields_points_messages() -> None:
+    from gracenav._validate import Fields
+
+    f = Fields(
+        {"bounds": [[0, 0]], "poly": [[0, 0], [1, "x"]], "ok": [[0, 1], [2.5, 3]]}, "", "m.yaml"
+    )
+    assert f.points("ok", what="points [x, y]") == ((0.0, 1.0), (2.5, 3.0))
+    xy = "[x, y] (m)"
+    assert (
+        _refusal(
+            lambda: f.points("bounds", min_len=2, max_len=2, what="corners [x, y] (m)", item=xy)
+        )
+        == "m.yaml: 'bounds' must be a list of 2 corners [x, y] (m), got [[0, 0]]"
+    )
+    assert _refusal(lambda: f.points("poly", what="vertices", item=xy)) == (
+        "m.yaml: 'poly[1]' must be a list of 2 numbers [x, y] (m) (finite), got [1, 'x']"
+    )
+    assert _refusal(lambda: f.points("bounds", min_len=3, what="vertices")) == (
+        "m.yaml: 'bounds' must be a list of at least 3 vertices, got [[0, 0]]"
+    )
+    assert _refusal(lambda: f.points("ok", max_len=1, what="points", advice="merge them")) == (
+        "m.yaml: 'ok' has 2 entries; at most 1 are allowed; merge them"
+    )
+    assert _refusal(lambda: f.points("ok", bound=2.0, what="points")) == (
+        "m.yaml: 'ok[1]' entries must be within ±2, got [2.5, 3]"
+    )
+
+
+def test_fields_variant_messages() -> None:
+    from gracenav._validate import Fields
+
+    options = ("rectangle", "circle")
+    kind, body = Fields({"circle": {"radius": 1}}, "obstacles[0]", "s").variant(options)
+    assert kind == "circle" and body.where == "obstacles[0].circle" and body.data["radius"] == 1
+    for doc, got in (({}, "none"), ({"circle": {}, "rectangle": {}}, "'circle', 'rectangle'")):
+        assert _refusal(lambda doc=doc: Fields(doc, "obstacles[0]", "s").variant(options)) == (
+            f"s: 'obstacles[0]' must hold exactly one of the keys rectangle, circle, got {got}"
+        )
+    assert _refusal(lambda: Fields({"circle": 3}, "o", "s").variant(options)) == (
+        "s: 'o.circle' must be a mapping, got a number"
+    )
+    assert _refusal(lambda: Fields([1], "o", "s", expect="a mapping {circle: ...}")) == (
+        "s: 'o' must be a mapping {circle: ...}, got a list"
+    )
+
+
+def test_fields_file_messages(tmp_path: Path) -> None:
+    from gracenav._validate import Fields
+
+    (tmp_path / "img.pgm").write_bytes(b"")
+    (tmp_path / "sub").mkdir()
+    doc = {"here": "img.pgm", "absolute": str(tmp_path / "img.pgm"), "gone": "x/none.pgm"}
+    f = Fields({**doc, "folder": "sub", "empty": ""}, "", str(tmp_path / "map.yaml"))
+    assert f.file("here", tmp_path) == tmp_path / "img.pgm"
+    assert f.file("absolute", Path("/nowhere")) == tmp_path / "img.pgm"
+    assert f.file("gone", tmp_path, must_exist=False) == tmp_path / "x" / "none.pgm"
+    assert _refusal(lambda: f.file("gone", tmp_path)) == (
+        f"{tmp_path / 'map.yaml'}: 'gone': file {tmp_path / 'x' / 'none.pgm'} not found; a "
+        "relative path is taken from the folder of map.yaml"
+    )
+    assert _refusal(lambda: f.file("folder", tmp_path)).startswith(
+        f"{tmp_path / 'map.yaml'}: 'folder': file {tmp_path / 'sub'} is a folder, not a file; "
+    )
+    assert _refusal(lambda: f.file("empty", tmp_path)) == (
+        f"{tmp_path / 'map.yaml'}: 'empty' must be a non-empty one-line string of at most 4096 "
+        "characters without control characters, got ''"
+    )
+
+
+_field_values = st.recursive(
+    st.none()
+    | st.booleans()
+    | st.integers()
+    | st.sampled_from([10**400, 2**63, -0.0, 1e308])
+    | st.floats(allow_nan=True, allow_infinity=True)
+    | st.text(max_size=8),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=4), inner),
+    max_leaves=8,
+)
+
+
+@settings(max_examples=200, deadline=None)
+@given(_field_values)
+def test_fuzz_every_reader_returns_or_refuses_in_one_line(value: Any) -> None:
+    from gracenav._validate import Fields
+    from gracenav.errors import MapError
+
+    readers = [
+        lambda f: f.number("v", positive=True, maximum=10.0, unit="m"),
+        lambda f: f.integer("v", minimum=1, maximum=5),
+        lambda f: f.choice("v", ("a", "b")),
+        lambda f: f.string("v"),
+        lambda f: f.vector("v", 2, bound=5.0),
+        lambda f: f.items("v", min_len=1, max_len=3, what="things"),
+        lambda f: f.points("v", min_len=2, max_len=3, what="points"),
+        lambda f: f.sub("v").variant(("a", "b")),
+        lambda f: f.file("v", Path("/nonexistent-folder")),
+        lambda f: Fields(value, "v", "f.yaml", error=MapError).check_keys(("a",)),
+    ]
+    for read in readers:
+        try:
+            read(Fields({"v": value}, "top", "f.yaml", error=MapError))
+        except MapError as exc:
+            msg = str(exc)
+            assert re.match(r"f\.yaml: .*'(top\.)?v['.\[]", msg), msg  # names the key path
+            assert "\n" not in msg and "np." not in msg

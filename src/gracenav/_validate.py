@@ -71,6 +71,17 @@ def show(value: Any, limit: int = 40) -> str:
     return text if len(text) <= limit else text[: limit - 4] + " ..."
 
 
+def _key_text(key: Any) -> str:
+    """A mapping key as it appears in a key path: control characters escaped, long keys
+    shortened, other types shown as values."""
+    if not isinstance(key, str):
+        return show(key, 20)
+    if not key:
+        return '""'
+    text = repr(key)[1:-1]
+    return text if len(text) <= 20 else text[:16] + " ..."
+
+
 def _kind(value: Any) -> str:
     if value is None:
         return "nothing (an empty document or null)"
@@ -254,7 +265,7 @@ class Fields:
 
     def check_keys(self, allowed: Sequence[str] | set[str]) -> None:
         """Refuse keys not in ``allowed``."""
-        unknown = sorted(show(k, 20).strip("'") for k in self.data if k not in allowed)
+        unknown = sorted(_key_text(k) for k in self.data if k not in allowed)
         if unknown:
             shown = ", ".join(repr(self.path(k)) for k in unknown[:5])
             raise self.fail(
