@@ -20,6 +20,7 @@ from gracenav.world import (
     MAP_BYTES_PER_CELL,
     MAX_MAP_CELLS,
     MAX_MAP_FILE_BYTES,
+    MAX_POLYGON_POINTS,
     Circle,
     Polygon,
     Rectangle,
@@ -331,3 +332,21 @@ def test_duplicate_keys_in_a_map_file_are_errors(tmp_path) -> None:
     ros.write_text("image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: 0\nnegate: 1\n")
     with pytest.raises(MapError, match="duplicate key 'negate'"):
         load_map(ros)
+
+
+def test_polygons_over_the_point_limit_are_refused_before_the_pair_check() -> None:
+    # the simplicity check compares every pair of edges: quadratic in the point count
+    points = tuple((float(k), float(k % 2)) for k in range(MAX_POLYGON_POINTS + 1))
+    with pytest.raises(MapError) as info:
+        Polygon(points)
+    assert str(info.value) == (
+        f"a polygon has at most {MAX_POLYGON_POINTS} points, got {MAX_POLYGON_POINTS + 1}; "
+        "split it into several polygons or simplify its outline"
+    )
+    doc = {"bounds": [[0, 0], [1, 1]], "obstacles": [{"polygon": {"points": list(points)}}]}
+    msg, _ = refused(lambda: load_map(doc))
+    assert msg == (
+        f"inline map: 'obstacles[0].polygon.points' has {MAX_POLYGON_POINTS + 1} entries; at "
+        f"most {MAX_POLYGON_POINTS} are allowed; split the polygon into several or simplify "
+        "its outline"
+    )

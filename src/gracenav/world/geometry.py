@@ -32,8 +32,8 @@ _PAIR_CHUNK = 1 << 18  # point/edge pairs evaluated at once in polygon tests
 MAX_COORDINATE = 1e12
 
 #: Most points a polygon lists (a repeated first point at the end included). Checking
-#: that a polygon is simple compares every pair of its edges: ≈ 1 s and ≈ 80 MiB at 2000
-#: points, growing with the square of the count.
+#: that a polygon is simple compares every pair of its edges: ≈ 0.4 s and ≈ 65 MiB at
+#: 2000 points (tracemalloc), growing with the square of the count.
 MAX_POLYGON_POINTS = 2000
 
 
