@@ -350,3 +350,15 @@ def test_polygons_over_the_point_limit_are_refused_before_the_pair_check() -> No
         f"most {MAX_POLYGON_POINTS} are allowed; split the polygon into several or simplify "
         "its outline"
     )
+
+
+def test_the_name_is_checked_when_given_and_the_file_stem_is_not(tmp_path: Path) -> None:
+    f = tmp_path / ("m" * 240 + ".yaml")  # longer than a given name may be
+    f.write_text("bounds: [[0, 0], [1, 1]]\n")
+    assert load_map(f).name == "m" * 240
+    f.write_text('bounds: [[0, 0], [1, 1]]\nname: "lab\\e[2J"\n')
+    msg, _ = refused(lambda: load_map(f))
+    assert msg == (
+        f"{f}: 'name' must be a non-empty one-line string of at most 200 characters without "
+        "control characters, got 'lab\\x1b[2J'"
+    )

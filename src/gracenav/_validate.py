@@ -122,20 +122,22 @@ def number_range(
 ) -> str:
     """The numbers allowed, in words: "a positive number (m)", "a number in [0, 5] m",
     "an integer >= 1", "a number in (0, 600] s"."""
-    noun = "an integer" if integer else "a number"
-    u = f" {unit}" if unit else ""
+    kind = "integer" if integer else "number"
+    noun = f"an {kind}" if integer else f"a {kind}"
+    u = f" {unit}" if unit else ""  # after a limit: ">= 0 m"
+    pu = f" ({unit})" if unit else ""  # after a word: "a positive number (m)"
     low = "(0" if positive and (minimum is None or minimum <= 0) else None
     if low is None and minimum is not None:
         low = f"[{_bound(minimum)}"
     if low is not None and maximum is not None:
         return f"{noun} in {low}, {_bound(maximum)}]{u}"
     if low == "(0":
-        return f"a positive {noun[3 if integer else 2 :]}{f' ({unit})' if unit else ''}"
+        return f"a positive {kind}{pu}"
     if minimum is not None:
         return f"{noun} >= {_bound(minimum)}{u}"
     if maximum is not None:
         return f"{noun} <= {_bound(maximum)}{u}"
-    return f"a finite {noun[3 if integer else 2 :]}{f' ({unit})' if unit else ''}"
+    return f"a finite {kind}{pu}"
 
 
 def _bound(x: float) -> str:

@@ -104,7 +104,7 @@ def map_from_description(doc: Mapping[Any, Any], where: str, default_name: str) 
         item=_XY,
     )
     res = top.number("resolution", DEFAULT_RESOLUTION, positive=True, unit="m")
-    name = top.string("name", default_name)
+    name = top.string("name") if "name" in top.data else default_name  # the file's stem
     if top.get("obstacles", None) is None:  # "obstacles:" with nothing after it
         raw: list[Any] = []
     else:
