@@ -163,8 +163,14 @@ KEYS = [
     ({"map": {"ros_map": 5}}, "'map.ros_map'"),
     ({"map": {"ros_map": "x.yaml", "bounds": [[0, 0], [1, 1]]}}, "unknown key(s) 'map.bounds'"),
     ({"map.bounds": [[0, 0], [1e5, 1e5]]}, "cells"),
-    ({"robot.footprint_radius": -0.1}, "'robot.footprint_radius' must be >= 0 m"),
-    ({"robot.footprint_radius": 1e9}, "'robot.footprint_radius' must be <= 5 m"),
+    (
+        {"robot.footprint_radius": -0.1},
+        "'robot.footprint_radius' must be a number in [0, 5] m, got -0.1",
+    ),
+    (
+        {"robot.footprint_radius": 1e9},
+        "'robot.footprint_radius' must be a number in [0, 5] m, got 1000000000.0",
+    ),
     ({"robot.footprint_radius": "wide"}, "'robot.footprint_radius' must be a finite number"),
     ({"planner.cost": "money"}, "'planner.cost' must be one of time, distance"),
     ({"planner.max_halvings": -1}, "'planner.max_halvings' must be an integer in [0, 20]"),
@@ -187,10 +193,16 @@ KEYS = [
     ({"simulation.seed": -1}, "'simulation.seed' must be an integer in [0, 4294967295]"),
     ({"simulation.seed": 2**70}, "'simulation.seed'"),
     ({"simulation.seed": 1.5}, "'simulation.seed'"),
-    ({"simulation.position_noise_std": -0.01}, "'simulation.position_noise_std' must be >= 0"),
-    ({"simulation.max_time": 0}, "'simulation.max_time' must be positive s"),
-    ({"simulation.max_time": -5}, "'simulation.max_time' must be positive"),
-    ({"simulation.max_time": "10s"}, "'simulation.max_time' must be a finite number s"),
+    (
+        {"simulation.position_noise_std": -0.01},
+        "'simulation.position_noise_std' must be a number in [0, 1] m, got -0.01",
+    ),
+    ({"simulation.max_time": 0}, "'simulation.max_time' must be a positive number (s), got 0"),
+    ({"simulation.max_time": -5}, "'simulation.max_time' must be a positive number (s), got -5"),
+    (
+        {"simulation.max_time": "10s"},
+        "'simulation.max_time' must be a finite number (s), got '10s'",
+    ),
     ({"simulation.max_time": float("inf")}, "'simulation.max_time' must be a finite number"),
     ({"simulation.max_time": 10**400}, "'simulation.max_time' must be a finite number"),
     ({"simulation.max_time": 1e9}, "more than the budget of 1800 s"),
@@ -200,7 +212,7 @@ KEYS = [
     ({"disturbances": [{"kind": "push", "time": 1.0}]}, "missing key 'disturbances[0].impulse'"),
     (
         {"disturbances": [{"kind": "push", "time": -1, "impulse": [10, 0]}]},
-        "'disturbances[0].time' must be >= 0 s",
+        "'disturbances[0].time' must be a number >= 0 s, got -1",
     ),
     (
         {"disturbances": [{"kind": "push", "time": 50, "impulse": [10, 0]}]},
@@ -371,9 +383,9 @@ BALANCE = [
     (["--push", "60", "60"], "pushes up to 80 N s"),
     (["--push", "nan", "0"], "expected a finite number"),
     (["--push", "10", "0", "--duration", "0.5"], "longer than 1 s"),
-    (["--duration", "1e9"], "expected a number <= 600 s"),
-    (["--duration", "-1"], "expected a positive number"),
-    (["--duration", "0"], "expected a positive number"),
+    (["--duration", "1e9"], "--duration: expected a number in (0, 600] s, got '1e9' (see"),
+    (["--duration", "-1"], "--duration: expected a number in (0, 600] s, got '-1' (see"),
+    (["--duration", "0"], "--duration: expected a number in (0, 600] s, got '0' (see"),
     (["--plant", "gazebo"], "invalid choice"),
 ]
 
@@ -409,10 +421,12 @@ def test_simulate_balance_reports_a_diverged_plant(tmp_path, capsys) -> None:
 @pytest.mark.parametrize(
     ("content", "message"),
     [
-        ("wheel_count: 3\n", "unknown parameter(s) wheel_count"),
-        ("body_mass: -1\n", "body_mass must be positive"),
-        ("body_mass: heavy\n", "body_mass must be a number"),
-        ("body_mass: .nan\n", "body_mass must be finite"),
+        ("wheel_count: 3\n", "unknown key(s) 'wheel_count'; allowed: ball_inertia"),
+        ("body_mass: -1\n", "p.yaml: 'body_mass' must be a positive number (kg), got -1\n"),
+        ("body_mass: heavy\n", "'body_mass' must be a finite number (kg), got 'heavy'\n"),
+        ("body_mass: .nan\n", "'body_mass' must be a finite number (kg), got nan\n"),
+        ("body_mass: '60'\n", "got '60' (a string: write numbers without quotes)\n"),
+        ("coulomb_friction: -1\n", "'coulomb_friction' must be a number >= 0 N m, got -1\n"),
         ("body_mass: 50\nbody_mass: 60\n", "duplicate key 'body_mass'"),
         ("- 1\n", "expected a mapping of parameter keys"),
         (b"body_mass: \xff\n", "not UTF-8"),
@@ -542,9 +556,15 @@ def test_leftovers_of_a_killed_run_are_recovered(tmp_path, capsys) -> None:
         (["plot", "primitives", "--out", "p"], "no suffix is not a figure format"),
         (["plot", "domain", "rest_to_cruise_x_2_0", "--out", "TMP"], "is a directory"),
         (["plot", "library", "MAP", "--out", "l.png", "--max-halvings", "8"], "budget"),
-        (["plot", "library", "MAP", "--out", "l.png", "--footprint", "-1"], "expected a number"),
+        (
+            ["plot", "library", "MAP", "--out", "l.png", "--footprint", "-1"],
+            "--footprint: expected a number in [0, 5] m, got '-1'",
+        ),
         (["plot", "library", "MAP", "--out", "l.png", "--max-halvings", "1.5"], "integer"),
-        (["plot", "primitives", "--d", "0", "--out", "p.png"], "expected a number >= 0.1"),
+        (
+            ["plot", "primitives", "--d", "0", "--out", "p.png"],
+            "--d: expected a number in [0.1, 2] m, got '0'",
+        ),
     ],
 )
 def test_plot_outputs_checked_up_front(tmp_path, capsys, argv, message) -> None:
@@ -696,3 +716,193 @@ def test_fuzz_mutations_of_a_valid_scenario(data: st.DataObject) -> None:
         return
     assert math.isfinite(sc.max_time) and sc.max_time * len(sc.starts) <= 1800
     assert all(math.isfinite(v) for s in (*sc.starts, *sc.goals) for v in s)
+
+
+# -- the schema layer: gracenav._validate.Fields -------------------------------------------
+# Scenario, parameter and map documents are all read through these readers; each test
+# asserts the exact message shape: "SOURCE: 'KEY.PATH' must be ..., got VALUE", one line.
+
+
+@pytest.mark.parametrize(
+    ("limits", "text"),
+    [
+        ({}, "a finite number"),
+        ({"unit": "m"}, "a finite number (m)"),
+        ({"positive": True, "unit": "m"}, "a positive number (m)"),
+        ({"minimum": 0.0, "unit": "s"}, "a number >= 0 s"),
+        ({"maximum": 600.0, "unit": "s"}, "a number <= 600 s"),
+        ({"minimum": 0.0, "maximum": 5.0, "unit": "m"}, "a number in [0, 5] m"),
+        ({"positive": True, "maximum": 600.0, "unit": "s"}, "a number in (0, 600] s"),
+        ({"positive": True, "minimum": 2.0}, "a number >= 2"),
+        ({"integer": True, "minimum": 0, "maximum": 2**32 - 1}, "an integer in [0, 4294967295]"),
+        ({"integer": True, "minimum": 1}, "an integer >= 1"),
+    ],
+)
+def test_number_range_words_every_kind_of_limit(limits: dict[str, Any], text: str) -> None:
+    from gracenav._validate import number_range
+
+    assert number_range(**limits) == text
+
+
+def _refusal(read: Any) -> str:
+    from gracenav.errors import ConfigError, MapError
+
+    with pytest.raises((ConfigError, MapError)) as info:
+        read()
+    msg = str(info.value)
+    assert "\n" not in msg and "np." not in msg
+    return msg
+
+
+def test_fields_number_messages() -> None:
+    import numpy as np
+
+    from gracenav._validate import Fields
+    from gracenav.errors import MapError
+
+    doc = {"radius": -1, "quoted": "0.5", "huge": 10**400, "np": np.float64(-1.5), "t": True}
+    f = Fields(doc, "obstacles[2].circle", "map.yaml", error=MapError)
+    assert _refusal(lambda: f.number("radius", positive=True, unit="m")) == (
+        "map.yaml: 'obstacles[2].circle.radius' must be a positive number (m), got -1"
+    )
+    assert _refusal(lambda: f.number("quoted", unit="m")) == (
+        "map.yaml: 'obstacles[2].circle.quoted' must be a finite number (m), got '0.5' "
+        "(a string: write numbers without quotes)"
+    )
+    assert _refusal(lambda: f.number("huge")) == (
+        "map.yaml: 'obstacles[2].circle.huge' must be a finite number, got ~1e400"
+    )
+    assert _refusal(lambda: f.number("np", minimum=0.0, maximum=1.0)) == (
+        "map.yaml: 'obstacles[2].circle.np' must be a number in [0, 1], got -1.5"
+    )
+    assert _refusal(lambda: f.number("t")) == (
+        "map.yaml: 'obstacles[2].circle.t' must be a finite number, got true"
+    )
+    assert _refusal(lambda: f.number("absent")) == (
+        "map.yaml: missing key 'obstacles[2].circle.absent'"
+    )
+    assert f.number("absent", 0.25) == 0.25
+    with pytest.raises(MapError):  # the error type given, not ConfigError
+        f.number("radius", positive=True)
+
+
+def test_check_number_for_function_arguments() -> None:
+    import numpy as np
+
+    from gracenav._validate import check_number
+    from gracenav.errors import ConfigError
+
+    assert check_number(np.float32(0.5), "resolution", "WorldMap") == 0.5
+    assert _refusal(lambda: check_number(np.int64(10), "size", "office_map", minimum=14.0)) == (
+        "office_map: 'size' must be a number >= 14, got 10"
+    )
+    with pytest.raises(ConfigError):
+        check_number(np.bool_(True), "size", "office_map")
+
+
+def test_fields_points_messages() -> None:
+    from gracenav._validate import Fields
+
+    f = Fields(
+        {"bounds": [[0, 0]], "poly": [[0, 0], [1, "x"]], "ok": [[0, 1], [2.5, 3]]}, "", "m.yaml"
+    )
+    assert f.points("ok", what="points [x, y]") == ((0.0, 1.0), (2.5, 3.0))
+    xy = "[x, y] (m)"
+    assert (
+        _refusal(
+            lambda: f.points("bounds", min_len=2, max_len=2, what="corners [x, y] (m)", item=xy)
+        )
+        == "m.yaml: 'bounds' must be a list of 2 corners [x, y] (m), got [[0, 0]]"
+    )
+    assert _refusal(lambda: f.points("poly", what="vertices", item=xy)) == (
+        "m.yaml: 'poly[1]' must be a list of 2 numbers [x, y] (m) (finite), got [1, 'x']"
+    )
+    assert _refusal(lambda: f.points("bounds", min_len=3, what="vertices")) == (
+        "m.yaml: 'bounds' must be a list of at least 3 vertices, got [[0, 0]]"
+    )
+    assert _refusal(lambda: f.points("ok", max_len=1, what="points", advice="merge them")) == (
+        "m.yaml: 'ok' has 2 entries; at most 1 are allowed; merge them"
+    )
+    assert _refusal(lambda: f.points("ok", bound=2.0, what="points")) == (
+        "m.yaml: 'ok[1]' entries must be within ±2, got [2.5, 3]"
+    )
+
+
+def test_fields_variant_messages() -> None:
+    from gracenav._validate import Fields
+
+    options = ("rectangle", "circle")
+    kind, body = Fields({"circle": {"radius": 1}}, "obstacles[0]", "s").variant(options)
+    assert kind == "circle" and body.where == "obstacles[0].circle" and body.data["radius"] == 1
+    for doc, got in (({}, "none"), ({"circle": {}, "rectangle": {}}, "'circle', 'rectangle'")):
+        assert _refusal(lambda doc=doc: Fields(doc, "obstacles[0]", "s").variant(options)) == (
+            f"s: 'obstacles[0]' must hold exactly one of the keys rectangle, circle, got {got}"
+        )
+    assert _refusal(lambda: Fields({"circle": 3}, "o", "s").variant(options)) == (
+        "s: 'o.circle' must be a mapping, got a number"
+    )
+    assert _refusal(lambda: Fields([1], "o", "s", expect="a mapping {circle: ...}")) == (
+        "s: 'o' must be a mapping {circle: ...}, got a list"
+    )
+
+
+def test_fields_file_messages(tmp_path: Path) -> None:
+    from gracenav._validate import Fields
+
+    (tmp_path / "img.pgm").write_bytes(b"")
+    (tmp_path / "sub").mkdir()
+    doc = {"here": "img.pgm", "absolute": str(tmp_path / "img.pgm"), "gone": "x/none.pgm"}
+    f = Fields({**doc, "folder": "sub", "empty": ""}, "", str(tmp_path / "map.yaml"))
+    assert f.file("here", tmp_path) == tmp_path / "img.pgm"
+    assert f.file("absolute", Path("/nowhere")) == tmp_path / "img.pgm"
+    assert f.file("gone", tmp_path, must_exist=False) == tmp_path / "x" / "none.pgm"
+    assert _refusal(lambda: f.file("gone", tmp_path)) == (
+        f"{tmp_path / 'map.yaml'}: 'gone': file {tmp_path / 'x' / 'none.pgm'} not found; a "
+        "relative path is taken from the folder of map.yaml"
+    )
+    assert _refusal(lambda: f.file("folder", tmp_path)).startswith(
+        f"{tmp_path / 'map.yaml'}: 'folder': file {tmp_path / 'sub'} is a folder, not a file; "
+    )
+    assert _refusal(lambda: f.file("empty", tmp_path)) == (
+        f"{tmp_path / 'map.yaml'}: 'empty' must be a non-empty one-line string of at most 4096 "
+        "characters without control characters, got ''"
+    )
+
+
+_field_values = st.recursive(
+    st.none()
+    | st.booleans()
+    | st.integers()
+    | st.sampled_from([10**400, 2**63, -0.0, 1e308])
+    | st.floats(allow_nan=True, allow_infinity=True)
+    | st.text(max_size=8),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=4), inner),
+    max_leaves=8,
+)
+
+
+@settings(max_examples=200, deadline=None)
+@given(_field_values)
+def test_fuzz_every_reader_returns_or_refuses_in_one_line(value: Any) -> None:
+    from gracenav._validate import Fields
+    from gracenav.errors import MapError
+
+    readers = [
+        lambda f: f.number("v", positive=True, maximum=10.0, unit="m"),
+        lambda f: f.integer("v", minimum=1, maximum=5),
+        lambda f: f.choice("v", ("a", "b")),
+        lambda f: f.string("v"),
+        lambda f: f.vector("v", 2, bound=5.0),
+        lambda f: f.items("v", min_len=1, max_len=3, what="things"),
+        lambda f: f.points("v", min_len=2, max_len=3, what="points"),
+        lambda f: f.sub("v").variant(("a", "b")),
+        lambda f: f.file("v", Path("/nonexistent-folder")),
+        lambda f: Fields(value, "v", "f.yaml", error=MapError).check_keys(("a",)),
+    ]
+    for read in readers:
+        try:
+            read(Fields({"v": value}, "top", "f.yaml", error=MapError))
+        except MapError as exc:
+            msg = str(exc)
+            assert re.match(r"f\.yaml: .*'(top\.)?v['.\[]", msg), msg  # names the key path
+            assert "\n" not in msg and "np." not in msg

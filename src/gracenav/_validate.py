@@ -1,44 +1,66 @@
 """Validation of user documents (scenarios, parameter files, maps): one reader, one style.
 
 A :class:`Fields` wraps one mapping of a parsed document at a key path (``task``,
-``disturbances[0]``) and reads typed values from it. Every failure is a
-:class:`gracenav.errors.ConfigError` (or the subclass given as ``error``) whose one-line
-message names the file, the full key path and the offending value, shortened::
+``obstacles[2].circle``) and reads typed values from it. Every failure is a
+:class:`gracenav.errors.ConfigError` (or the package error given as ``error``, e.g.
+:class:`~gracenav.errors.MapError`) whose one-line message names the file, the full key
+path and the offending value, shortened::
 
-    lab.yaml: 'task.starts[1]' must be a list of 4 numbers, got [0, 'a']
+    lab.yaml: 'task.starts[1]' must be a list of 4 numbers [x, y, xdot, ydot], got [0, 'a']
+    map.yaml: 'obstacles[2].circle.radius' must be a positive number (m), got -1
 
-Numbers are Python ``int``/``float`` only (not ``bool``), finite, and within the bounds
-the caller states; ranges appear in the message with their unit.
+Numbers are real numbers only (not ``bool``), finite, and within the bounds the caller
+states; ranges appear in the message with their unit (:func:`number_range`, shared with
+the command line's argument types). :func:`check_number` checks one value outside a
+document (a function argument) in the same words.
 """
 
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
-from gracenav.errors import ConfigError
+from gracenav.errors import ConfigError, GracenavError
 
-__all__ = ["Fields", "as_number", "require_mapping", "show"]
+__all__ = [
+    "Fields",
+    "as_number",
+    "check_number",
+    "in_range",
+    "number_range",
+    "require_mapping",
+    "show",
+]
 
 _MISSING: Any = ...
 
 
 def show(value: Any, limit: int = 40) -> str:
-    """A short, user-facing rendering of a parsed value for error messages."""
+    """A short, user-facing rendering of a parsed value for error messages.
+
+    Numbers of any real type (numpy's included) are shown as plain numbers, never as
+    ``np.float64(...)``.
+    """
     if value is None:
         return "null (nothing)"
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, Mapping):
         return "a mapping" if value else "an empty mapping"
-    if isinstance(value, float):
-        return repr(value)
-    if isinstance(value, int):
-        if abs(value) < 10**15:
-            return str(value)
-        sign = "-" if value < 0 else ""
-        return f"{sign}~1e{int(abs(value).bit_length() * math.log10(2))}"  # any size
+    if isinstance(value, numbers.Integral):
+        i = int(value)
+        if abs(i) < 10**15:
+            return str(i)
+        sign = "-" if i < 0 else ""
+        return f"{sign}~1e{int(abs(i).bit_length() * math.log10(2))}"  # any size
+    if isinstance(value, numbers.Real):
+        try:
+            return repr(float(value))
+        except OverflowError:
+            return "a number too large for a float"
     if isinstance(value, (list, tuple)):
         items = ", ".join(show(v, limit) for v in value[:5])
         text = f"[{items}{', ...' if len(value) > 5 else ''}]"
@@ -47,6 +69,17 @@ def show(value: Any, limit: int = 40) -> str:
     else:
         text = f"a {type(value).__name__}"
     return text if len(text) <= limit else text[: limit - 4] + " ..."
+
+
+def _key_text(key: Any) -> str:
+    """A mapping key as it appears in a key path: control characters escaped, long keys
+    shortened, other types shown as values."""
+    if not isinstance(key, str):
+        return show(key, 20)
+    if not key:
+        return '""'
+    text = repr(key)[1:-1]
+    return text if len(text) <= 20 else text[:16] + " ..."
 
 
 def _kind(value: Any) -> str:
@@ -60,24 +93,125 @@ def _kind(value: Any) -> str:
         return "a string"
     if isinstance(value, bool):
         return "true/false"
-    if isinstance(value, (int, float)):
+    if isinstance(value, numbers.Real):
         return "a number"
     return f"a {type(value).__name__}"
 
 
 def as_number(value: Any) -> float | None:
-    """``value`` as a finite float, or None if it is not a finite int/float (bool excluded)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    """``value`` as a finite float, or None if it is not a finite real number.
+
+    Python and numpy reals are numbers; ``bool`` (and numpy's) and strings are not.
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
         return None
     try:
         f = float(value)
-    except OverflowError:
+    except (OverflowError, TypeError, ValueError):
         return None
     return f if math.isfinite(f) else None
 
 
+def number_range(
+    *,
+    minimum: float | None = None,
+    maximum: float | None = None,
+    positive: bool = False,
+    integer: bool = False,
+    unit: str = "",
+) -> str:
+    """The numbers allowed, in words: "a positive number (m)", "a number in [0, 5] m",
+    "an integer >= 1", "a number in (0, 600] s"."""
+    kind = "integer" if integer else "number"
+    noun = f"an {kind}" if integer else f"a {kind}"
+    u = f" {unit}" if unit else ""  # after a limit: ">= 0 m"
+    pu = f" ({unit})" if unit else ""  # after a word: "a positive number (m)"
+    low = "(0" if positive and (minimum is None or minimum <= 0) else None
+    if low is None and minimum is not None:
+        low = f"[{_bound(minimum)}"
+    if low is not None and maximum is not None:
+        return f"{noun} in {low}, {_bound(maximum)}]{u}"
+    if low == "(0":
+        return f"a positive {kind}{pu}"
+    if minimum is not None:
+        return f"{noun} >= {_bound(minimum)}{u}"
+    if maximum is not None:
+        return f"{noun} <= {_bound(maximum)}{u}"
+    return f"a finite {kind}{pu}"
+
+
+def _bound(x: float) -> str:
+    """A limit as written in messages: integers in full, other numbers with %g."""
+    return str(x) if isinstance(x, int) and not isinstance(x, bool) else f"{x:g}"
+
+
+def in_range(
+    value: float,
+    *,
+    minimum: float | None = None,
+    maximum: float | None = None,
+    positive: bool = False,
+) -> bool:
+    """Whether the finite ``value`` is within the limits :func:`number_range` describes."""
+    return not (
+        (positive and not value > 0)
+        or (minimum is not None and value < minimum)
+        or (maximum is not None and value > maximum)
+    )
+
+
+def check_number(
+    value: Any,
+    name: str,
+    source: str,
+    *,
+    minimum: float | None = None,
+    maximum: float | None = None,
+    positive: bool = False,
+    unit: str = "",
+    error: type[GracenavError] = ConfigError,
+) -> float:
+    """``value`` as a float, checked as :meth:`Fields.number` checks a document's value.
+
+    For arguments of functions (``WorldMap(resolution=...)``): the message reads
+    ``SOURCE: 'NAME' must be ..., got ...``.
+    """
+    f = as_number(value)
+    if f is None:
+        hint = ""
+        if isinstance(value, str) and as_number(_float_or_none(value)) is not None:
+            hint = " (a string: write numbers without quotes)"
+        u = f" ({unit})" if unit else ""
+        raise error(f"{source}: '{name}' must be a finite number{u}, got {show(value)}{hint}")
+    if not in_range(f, minimum=minimum, maximum=maximum, positive=positive):
+        desc = number_range(minimum=minimum, maximum=maximum, positive=positive, unit=unit)
+        raise error(f"{source}: '{name}' must be {desc}, got {show(value)}")
+    return f
+
+
+def _float_or_none(text: str) -> float | None:
+    try:
+        return float(text)
+    except ValueError:
+        return None
+
+
+def _is_file(path: Path) -> bool:
+    try:  # a name too long for the file system raises OSError on some Python versions
+        return path.is_file()
+    except OSError:
+        return False
+
+
+def _is_dir(path: Path) -> bool:
+    try:
+        return path.is_dir()
+    except OSError:
+        return False
+
+
 def require_mapping(
-    data: Any, source: str, what: str, keys: Sequence[str], error: type[ConfigError] = ConfigError
+    data: Any, source: str, what: str, keys: Sequence[str], error: type[GracenavError] = ConfigError
 ) -> Mapping[Any, Any]:
     """The top level of a document must be a mapping; say which keys it should have.
 
@@ -100,22 +234,30 @@ class Fields:
     where : str
         Key path of ``data`` in the document ("" for the top level).
     source : str
-        The file (or "scenario", "parameters") named in messages.
-    error : type of ConfigError
-        Exception raised on invalid input.
+        The file (or "scenario", "parameters", "inline map") named in messages.
+    error : type of GracenavError
+        Exception raised on invalid input (``ConfigError``; ``MapError`` for maps).
+    expect : str
+        What ``data`` should be, for the message when it is not a mapping.
     """
 
     def __init__(
-        self, data: Any, where: str, source: str, *, error: type[ConfigError] = ConfigError
+        self,
+        data: Any,
+        where: str,
+        source: str,
+        *,
+        error: type[GracenavError] = ConfigError,
+        expect: str = "a mapping",
     ) -> None:
         self.error = error
         self.where = where
         self.source = source
         if not isinstance(data, Mapping):
-            raise self.fail(f"'{where}' must be a mapping, got {_kind(data)}")
+            raise self.fail(f"'{where}' must be {expect}, got {_kind(data)}")
         self.data = data
 
-    def fail(self, message: str) -> ConfigError:
+    def fail(self, message: str) -> GracenavError:
         """The exception to raise for ``message`` (prefixed with the source)."""
         return self.error(f"{self.source}: {message}")
 
@@ -125,7 +267,7 @@ class Fields:
 
     def check_keys(self, allowed: Sequence[str] | set[str]) -> None:
         """Refuse keys not in ``allowed``."""
-        unknown = sorted(show(k, 20).strip("'") for k in self.data if k not in allowed)
+        unknown = sorted(_key_text(k) for k in self.data if k not in allowed)
         if unknown:
             shown = ", ".join(repr(self.path(k)) for k in unknown[:5])
             raise self.fail(
@@ -151,33 +293,33 @@ class Fields:
         positive: bool = False,
         unit: str = "",
     ) -> float:
-        """A finite number within [minimum, maximum] (and > 0 if ``positive``)."""
-        v = self.get(key, default)
-        f = as_number(v)
-        u = f" {unit}" if unit else ""
-        if f is None:
-            raise self.fail(f"'{self.path(key)}' must be a finite number{u}, got {show(v)}")
-        if positive and not f > 0:
-            raise self.fail(f"'{self.path(key)}' must be positive{u}, got {show(v)}")
-        if minimum is not None and f < minimum:
-            raise self.fail(f"'{self.path(key)}' must be >= {minimum:g}{u}, got {show(v)}")
-        if maximum is not None and f > maximum:
-            raise self.fail(f"'{self.path(key)}' must be <= {maximum:g}{u}, got {show(v)}")
-        return f
+        """A finite number within [minimum, maximum] (and > 0 if ``positive``).
+
+        A number given as a quoted string is refused with a hint to drop the quotes.
+        """
+        return check_number(
+            self.get(key, default),
+            self.path(key),
+            self.source,
+            minimum=minimum,
+            maximum=maximum,
+            positive=positive,
+            unit=unit,
+            error=self.error,
+        )
 
     def integer(
         self, key: str, default: Any = _MISSING, *, minimum: int = 0, maximum: int | None = None
     ) -> int:
-        """An integer within [minimum, maximum]."""
+        """An integer within [minimum, maximum] (``bool`` and floats such as 1.0 refused)."""
         v = self.get(key, default)
-        rng = f">= {minimum}" if maximum is None else f"in [{minimum}, {maximum}]"
         if (
             isinstance(v, bool)
-            or not isinstance(v, int)
-            or v < minimum
-            or (maximum is not None and v > maximum)
+            or not isinstance(v, numbers.Integral)
+            or not in_range(int(v), minimum=minimum, maximum=maximum)
         ):
-            raise self.fail(f"'{self.path(key)}' must be an integer {rng}, got {show(v)}")
+            desc = number_range(minimum=minimum, maximum=maximum, integer=True)
+            raise self.fail(f"'{self.path(key)}' must be {desc}, got {show(v)}")
         return int(v)
 
     def choice(self, key: str, options: Sequence[str], default: Any = _MISSING) -> str:
@@ -204,6 +346,24 @@ class Fields:
                 f"{max_length} characters without control characters, got {show(v)}"
             )
         return v
+
+    def file(
+        self, key: str, base: Path, default: Any = _MISSING, *, must_exist: bool = True
+    ) -> Path:
+        """A file named by a path string: absolute, or relative to the folder ``base`` of
+        the document that names it (map_server's rule for a map's image).
+
+        With ``must_exist`` it must be an existing regular file.
+        """
+        text = self.string(key, default, max_length=4096)
+        path = base / text  # an absolute ``text`` replaces ``base``
+        if must_exist and not _is_file(path):
+            problem = "is a folder, not a file" if _is_dir(path) else "not found"
+            raise self.fail(
+                f"'{self.path(key)}': file {path} {problem}; a relative path is taken from "
+                f"the folder of {Path(self.source).name}"
+            )
+        return path
 
     def vector(
         self,
@@ -232,18 +392,73 @@ class Fields:
         return vals
 
     def items(
-        self, key: str, default: Any = _MISSING, *, min_len: int = 0, max_len: int, what: str
+        self,
+        key: str,
+        default: Any = _MISSING,
+        *,
+        min_len: int = 0,
+        max_len: int | None = None,
+        what: str,
+        advice: str = "",
     ) -> list[Any]:
-        """A list of ``min_len`` to ``max_len`` items, each described by ``what``."""
+        """A list of ``min_len`` to ``max_len`` items, each described by ``what``.
+
+        ``advice`` (what to do) ends the message of a list over ``max_len``.
+        """
         v = self.get(key, default)
+        if min_len == max_len:
+            need = f"a list of {min_len} {what}"
+        elif min_len > 1:
+            need = f"a list of at least {min_len} {what}"
+        else:
+            need = f"a {'non-empty ' if min_len else ''}list of {what}"
         if not isinstance(v, list) or len(v) < min_len:
-            need = "a non-empty list" if min_len else "a list"
-            raise self.fail(f"'{self.path(key)}' must be {need} of {what}, got {show(v)}")
-        if len(v) > max_len:
+            raise self.fail(f"'{self.path(key)}' must be {need}, got {show(v)}")
+        if max_len is not None and len(v) > max_len and min_len == max_len:
+            raise self.fail(f"'{self.path(key)}' must be {need}, got {show(v)}")
+        if max_len is not None and len(v) > max_len:
             raise self.fail(
                 f"'{self.path(key)}' has {len(v)} entries; at most {max_len} are allowed"
+                + (f"; {advice}" if advice else "")
             )
         return v
+
+    def points(
+        self,
+        key: str,
+        default: Any = _MISSING,
+        *,
+        dim: int = 2,
+        min_len: int = 0,
+        max_len: int | None = None,
+        bound: float | None = None,
+        what: str,
+        item: str | None = None,
+        advice: str = "",
+    ) -> tuple[tuple[float, ...], ...]:
+        """A list of points (or states), each a list of ``dim`` finite numbers.
+
+        The list is checked as by :meth:`items` (described by ``what``), each entry as by
+        :meth:`vector` (described by ``item``, default ``what``) under its own key path,
+        ``key[i]``.
+        """
+        raw = self.items(key, default, min_len=min_len, max_len=max_len, what=what, advice=advice)
+        desc = what if item is None else item
+        return tuple(
+            self.vector(f"{key}[{i}]", dim, p, bound=bound, what=desc) for i, p in enumerate(raw)
+        )
+
+    def variant(self, options: Sequence[str]) -> tuple[str, Fields]:
+        """The one key of a mapping that must hold exactly one of ``options``, and the
+        mapping under it (e.g. ``{circle: {center: ..., radius: ...}}``)."""
+        keys = list(self.data)
+        if len(keys) != 1 or keys[0] not in options:
+            got = ", ".join(show(k, 20) for k in keys[:5]) if keys else "none"
+            raise self.fail(
+                f"'{self.where}' must hold exactly one of the keys {', '.join(options)}, got {got}"
+            )
+        kind = str(keys[0])
+        return kind, self.sub(kind)
 
     def sub(self, key: str, default: Any = _MISSING) -> Fields:
         """The mapping at ``key``."""

@@ -8,15 +8,13 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from gracenav._io import atomic_write_text, load_document
-from gracenav._validate import require_mapping
-from gracenav.errors import ConfigError
+from gracenav._validate import Fields, check_number, require_mapping
 
 __all__ = ["BallbotParams"]
 
@@ -36,6 +34,31 @@ _POSITIVE = (
     "body_radius",
 )
 _NON_NEGATIVE = ("coulomb_friction", "viscous_friction")
+_UNITS = {
+    "ball_radius": "m",
+    "ball_mass": "kg",
+    "ball_inertia": "kg m^2",
+    "body_mass": "kg",
+    "body_com_height": "m",
+    "body_inertia_x": "kg m^2",
+    "body_inertia_y": "kg m^2",
+    "body_inertia_z": "kg m^2",
+    "coulomb_friction": "N m",
+    "viscous_friction": "N m s/rad",
+    "gravity": "m/s^2",
+    "torque_limit": "N m",
+    "friction_smoothing": "rad/s",
+    "body_radius": "m",
+}
+
+
+def _limits(name: str) -> dict[str, Any]:
+    """The limits of field ``name`` as keywords of :func:`gracenav._validate.check_number`."""
+    return {
+        "positive": name in _POSITIVE,
+        "minimum": 0.0 if name in _NON_NEGATIVE else None,
+        "unit": _UNITS[name],
+    }
 
 
 @dataclass(frozen=True)
@@ -93,26 +116,8 @@ class BallbotParams:
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise ConfigError(
-                    f"BallbotParams.{f.name} must be a number, got {value!r} "
-                    f"({type(value).__name__})"
-                )
-            if not math.isfinite(value):
-                raise ConfigError(f"BallbotParams.{f.name} must be finite, got {value!r}")
-            object.__setattr__(self, f.name, float(value))
-        for name in _POSITIVE:
-            if getattr(self, name) <= 0.0:
-                raise ConfigError(
-                    f"BallbotParams.{name} must be positive, got {getattr(self, name)!r}"
-                )
-        for name in _NON_NEGATIVE:
-            if getattr(self, name) < 0.0:
-                raise ConfigError(
-                    f"BallbotParams.{name} must be >= 0 (0 switches it off), "
-                    f"got {getattr(self, name)!r}"
-                )
+            value = check_number(getattr(self, f.name), f.name, "BallbotParams", **_limits(f.name))
+            object.__setattr__(self, f.name, value)
 
     # -- derived constants of the planar model (IJRR 2014, eqs. 1-5) -----------------
     def alpha(self) -> float:
@@ -169,25 +174,18 @@ class BallbotParams:
             names the field and ``source``.
         """
         names = [f.name for f in dataclasses.fields(cls)]
-        data = require_mapping(data, source, "parameter", [*names[:3], "..."])
-        unknown = sorted(str(k) for k in data if k not in names)
-        if unknown:
-            raise ConfigError(
-                f"{source}: unknown parameter(s) {', '.join(unknown)}; known: {', '.join(names)}"
-            )
+        fields = Fields(require_mapping(data, source, "parameter", [*names[:3], "..."]), "", source)
+        fields.check_keys(names)
         if base is None:
-            missing = [n for n in names if n not in data]
+            missing = [n for n in names if n not in fields.data]
             if missing:
-                raise ConfigError(
-                    f"{source}: missing parameter(s) {', '.join(missing)} (a partial file "
+                raise fields.fail(
+                    f"missing parameter(s) {', '.join(missing)} (a partial file "
                     "overrides the defaults only where the defaults are given as a base)"
                 )
         values = base.to_dict() if base is not None else {}
-        values.update({n: data[n] for n in names if n in data})
-        try:
-            return cls(**values)
-        except ConfigError as exc:
-            raise ConfigError(f"{source}: {exc}") from None
+        values.update({n: fields.number(n, **_limits(n)) for n in names if n in fields.data})
+        return cls(**values)
 
     @classmethod
     def load(cls, path: str | Path, *, base: BallbotParams | None = None) -> BallbotParams:

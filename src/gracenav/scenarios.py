@@ -156,8 +156,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
     map_source: dict[str, Any] | Path
     if "ros_map" in mp.data:
         mp.check_keys({"ros_map"})
-        rel = mp.string("ros_map", max_length=4096)
-        map_source = (base or Path(".")) / rel
+        map_source = mp.file("ros_map", base or Path("."), must_exist=False)
     else:
         map_source = dict(mp.data)  # checked by the map loader (size limit included)
     robot = top.sub("robot", {})
@@ -183,19 +182,15 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         goals: tuple[tuple[float, ...], ...] = (
             task.vector("goal", 4, bound=MAX_COORDINATE, what=state),
         )
-        starts_raw = task.items("starts", min_len=1, max_len=MAX_STARTS, what=state)
-        starts = tuple(
-            task.vector(f"starts[{i}]", 4, s, bound=MAX_COORDINATE, what=state)
-            for i, s in enumerate(starts_raw)
+        starts = task.points(
+            "starts", dim=4, min_len=1, max_len=MAX_STARTS, bound=MAX_COORDINATE, what=state
         )
         loops = 1
     else:
         task.check_keys({"kind", "start", "goals", "loops"})
         starts = (task.vector("start", 4, bound=MAX_COORDINATE, what=state),)
-        goals_raw = task.items("goals", min_len=1, max_len=MAX_GOALS, what=state)
-        goals = tuple(
-            task.vector(f"goals[{i}]", 4, g, bound=MAX_COORDINATE, what=state)
-            for i, g in enumerate(goals_raw)
+        goals = task.points(
+            "goals", dim=4, min_len=1, max_len=MAX_GOALS, bound=MAX_COORDINATE, what=state
         )
         loops = task.integer("loops", 1, minimum=1, maximum=MAX_LOOPS)
     total = max_time * len(starts)

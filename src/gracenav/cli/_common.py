@@ -33,8 +33,12 @@ def number(
     integer: bool = False,
     unit: str = "",
 ) -> Callable[[str], float]:
-    """An argparse type: a finite number (or integer) within the given limits."""
-    u = f" {unit}" if unit else ""
+    """An argparse type: a finite number (or integer) within the given limits.
+
+    The limits are worded as in document errors (:func:`gracenav._validate.number_range`):
+    ``expected a number in (0, 600] s, got '1e9'``.
+    """
+    from gracenav._validate import in_range, number_range
 
     def parse(text: str) -> float:
         try:
@@ -44,12 +48,11 @@ def number(
             raise argparse.ArgumentTypeError(f"expected {kind}, got {text!r}") from None
         if not math.isfinite(value):
             raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
-        if positive and not value > 0:
-            raise argparse.ArgumentTypeError(f"expected a positive number{u}, got {text!r}")
-        if minimum is not None and value < minimum:
-            raise argparse.ArgumentTypeError(f"expected a number >= {minimum:g}{u}, got {text!r}")
-        if maximum is not None and value > maximum:
-            raise argparse.ArgumentTypeError(f"expected a number <= {maximum:g}{u}, got {text!r}")
+        if not in_range(value, minimum=minimum, maximum=maximum, positive=positive):
+            desc = number_range(
+                minimum=minimum, maximum=maximum, positive=positive, integer=integer, unit=unit
+            )
+            raise argparse.ArgumentTypeError(f"expected {desc}, got {text!r}")
         return int(value) if integer else value
 
     parse.__name__ = "integer" if integer else "number"

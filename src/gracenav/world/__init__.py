@@ -17,7 +17,14 @@ instantiated on a map M and kept only where they are obstacle free). It comes fr
 
 from __future__ import annotations
 
-from gracenav.world.geometry import MAX_COORDINATE, Circle, Polygon, Rectangle, Shape
+from gracenav.world.geometry import (
+    MAX_COORDINATE,
+    MAX_POLYGON_POINTS,
+    Circle,
+    Polygon,
+    Rectangle,
+    Shape,
+)
 from gracenav.world.loading import MAX_MAP_FILE_BYTES, load_map
 from gracenav.world.occupancy import DEFAULT_RESOLUTION, MAP_BYTES_PER_CELL, MAX_MAP_CELLS, WorldMap
 from gracenav.world.ros_map import save_ros_map
@@ -29,6 +36,7 @@ __all__ = [
     "MAX_COORDINATE",
     "MAX_MAP_CELLS",
     "MAX_MAP_FILE_BYTES",
+    "MAX_POLYGON_POINTS",
     "Circle",
     "Polygon",
     "Rectangle",

@@ -3,74 +3,77 @@
 The description is ``{"bounds": [[xmin, ymin], [xmax, ymax]], "obstacles": [...],
 "resolution": 0.05, "name": "..."}`` in metres; each obstacle is
 ``{"rectangle": {"min": [x, y], "max": [x, y]}}``, ``{"circle": {"center": [x, y],
-"radius": r}}`` or ``{"polygon": {"points": [[x, y], ...]}}``. This module checks the
-description field by field and hands the shapes to :meth:`WorldMap.from_shapes`.
+"radius": r}}`` or ``{"polygon": {"points": [[x, y], ...]}}``. This module reads the
+description with :class:`gracenav._validate.Fields` (types, key paths) and hands the
+shapes to :meth:`WorldMap.from_shapes`; the shapes check their own geometry (a rectangle's
+corners in order, a simple polygon) and the grid its extent and budget.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping
 from typing import Any
 
+from gracenav._validate import Fields
 from gracenav.errors import MapError
-from gracenav.world._checks import check_keys, pair_field, positive_field, real_field
-from gracenav.world.geometry import Circle, Polygon, Rectangle, Shape
+from gracenav.world.geometry import (
+    MAX_COORDINATE,
+    MAX_POLYGON_POINTS,
+    Circle,
+    Polygon,
+    Rectangle,
+    Shape,
+)
 from gracenav.world.occupancy import DEFAULT_RESOLUTION, WorldMap
 
 __all__ = ["map_from_description"]
 
-_GEOMETRY_REQUIRED = ("bounds",)
-_GEOMETRY_OPTIONAL = ("obstacles", "resolution", "name")
+_KEYS = ("bounds", "obstacles", "resolution", "name")
 _SHAPE_KEYS: dict[str, tuple[str, ...]] = {
     "rectangle": ("min", "max"),
     "circle": ("center", "radius"),
     "polygon": ("points",),
 }
+_XY = "[x, y] (m)"
 
 
-def _shape_from_doc(item: object, where: str, name: str) -> Shape:
-    if not isinstance(item, Mapping) or len(item) != 1:
-        raise MapError(
-            f"{where}: '{name}' must be a mapping with exactly one of the keys "
-            f"rectangle, circle, polygon, got {item!r}"
-        )
-    ((kind, body),) = item.items()
-    if kind not in _SHAPE_KEYS:
-        raise MapError(
-            f"{where}: '{name}' has unknown shape {kind!r}; use rectangle, circle or polygon"
-        )
-    field_name = f"{name}.{kind}"
-    if not isinstance(body, Mapping):
-        raise MapError(f"{where}: '{field_name}' must be a mapping, got {body!r}")
-    check_keys(body, where, f"'{field_name}'", _SHAPE_KEYS[kind])
+def _shape(item: Any, where: str, source: str) -> Shape:
+    """The obstacle ``item`` at key path ``where`` (``obstacles[k]``)."""
+    shape = Fields(
+        item,
+        where,
+        source,
+        error=MapError,
+        expect="a mapping with one of the keys rectangle, circle, polygon",
+    )
+    kind, body = shape.variant(tuple(_SHAPE_KEYS))
+    body.check_keys(_SHAPE_KEYS[kind])
+    if kind == "rectangle":
+        lo = body.vector("min", 2, bound=MAX_COORDINATE, what=_XY)
+        hi = body.vector("max", 2, bound=MAX_COORDINATE, what=_XY)
+        return _built(body, Rectangle, (lo[0], lo[1]), (hi[0], hi[1]))
+    if kind == "circle":
+        c = body.vector("center", 2, bound=MAX_COORDINATE, what=_XY)
+        r = body.number("radius", positive=True, unit="m")  # Circle checks its upper limit
+        return _built(body, Circle, (c[0], c[1]), r)
+    pts = body.points(
+        "points",
+        max_len=MAX_POLYGON_POINTS,
+        bound=MAX_COORDINATE,
+        what="vertices [x, y] (m)",
+        item=_XY,
+        advice="split the polygon into several or simplify its outline",
+    )
+    return _built(body, Polygon, tuple((p[0], p[1]) for p in pts))
+
+
+def _built(body: Fields, shape: Callable[..., Shape], *args: Any) -> Shape:
+    """``shape(*args)``; its own geometry check (corners in order, a simple polygon) is
+    refused under the key path of ``body``."""
     try:
-        if kind == "rectangle":
-            return Rectangle(
-                pair_field(body["min"], where, f"{field_name}.min"),
-                pair_field(body["max"], where, f"{field_name}.max"),
-            )
-        if kind == "circle":
-            center = pair_field(body["center"], where, f"{field_name}.center")
-            radius = real_field(body["radius"], where, f"{field_name}.radius", "m")
-            if radius <= 0.0:
-                raise MapError(
-                    f"{where}: field '{field_name}.radius' must be > 0 m, got {radius:g}; "
-                    "give the circle a positive radius"
-                )
-            return Circle(center, radius)
-        points = body["points"]
-        if not isinstance(points, Sequence) or isinstance(points, str | bytes):
-            raise MapError(
-                f"{where}: field '{field_name}.points' must be a list of [x, y] pairs, "
-                f"got {points!r}"
-            )
-        pts = tuple(pair_field(p, where, f"{field_name}.points[{k}]") for k, p in enumerate(points))
-        return Polygon(pts)
+        return shape(*args)
     except MapError as exc:
-        msg = str(exc)
-        if msg.startswith(where):
-            raise
-        raise MapError(f"{where}: '{field_name}': {msg}") from None
+        raise body.fail(f"'{body.where}': {exc}") from None
 
 
 def map_from_description(doc: Mapping[Any, Any], where: str, default_name: str) -> WorldMap:
@@ -88,24 +91,25 @@ def map_from_description(doc: Mapping[Any, Any], where: str, default_name: str) 
     Raises
     ------
     MapError
-        If a key is unknown or missing, or a value is invalid.
+        If a key is unknown or missing, or a value is invalid; the message names
+        ``where`` and the key path (``'obstacles[2].circle.radius'``).
     """
-    check_keys(doc, where, "the inline map", _GEOMETRY_REQUIRED, _GEOMETRY_OPTIONAL)
-    bounds = doc["bounds"]
-    if not isinstance(bounds, Sequence) or isinstance(bounds, str | bytes) or len(bounds) != 2:
-        raise MapError(
-            f"{where}: field 'bounds' must be [[xmin, ymin], [xmax, ymax]] in m, got {bounds!r}"
+    top = Fields(doc, "", where, error=MapError)
+    top.check_keys(_KEYS)
+    lo, hi = top.points(
+        "bounds",
+        min_len=2,
+        max_len=2,
+        what="corners [[xmin, ymin], [xmax, ymax]] (m)",
+        item=_XY,
+    )
+    res = top.number("resolution", DEFAULT_RESOLUTION, positive=True, unit="m")
+    name = top.string("name") if "name" in top.data else default_name  # the file's stem
+    if top.get("obstacles", None) is None:  # "obstacles:" with nothing after it
+        raw: list[Any] = []
+    else:
+        raw = top.items(
+            "obstacles", what="shapes ({rectangle: ...}, {circle: ...}, {polygon: ...})"
         )
-    lo = pair_field(bounds[0], where, "bounds[0]")
-    hi = pair_field(bounds[1], where, "bounds[1]")
-    res = positive_field(doc.get("resolution", DEFAULT_RESOLUTION), where, "resolution", "m")
-    name = doc.get("name", default_name)
-    if not isinstance(name, str):
-        raise MapError(f"{where}: field 'name' must be a string, got {name!r}")
-    obstacles = doc.get("obstacles")
-    if obstacles is None:
-        obstacles = []
-    if not isinstance(obstacles, Sequence) or isinstance(obstacles, str | bytes):
-        raise MapError(f"{where}: field 'obstacles' must be a list of shapes, got {obstacles!r}")
-    shapes = [_shape_from_doc(item, where, f"obstacles[{k}]") for k, item in enumerate(obstacles)]
+    shapes = [_shape(item, f"obstacles[{k}]", where) for k, item in enumerate(raw)]
     return WorldMap.from_shapes([lo, hi], shapes, resolution=res, name=name, source=where)

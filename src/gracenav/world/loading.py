@@ -16,7 +16,6 @@ import yaml
 
 from gracenav._io import StrictLoader, yaml_error_message
 from gracenav.errors import MapError
-from gracenav.world._checks import read_bytes
 from gracenav.world.inline import map_from_description
 from gracenav.world.occupancy import INLINE, WorldMap
 from gracenav.world.ros_map import map_from_ros_yaml
@@ -29,6 +28,15 @@ __all__ = ["MAX_MAP_FILE_BYTES", "load_map"]
 MAX_MAP_FILE_BYTES = 16 * 2**20
 
 _IMAGE_MAGIC = (b"\x89PNG", b"P1", b"P2", b"P3", b"P4", b"P5", b"P6", b"\xff\xd8", b"GIF8", b"BM")
+
+
+def _read_bytes(path: Path, where: str) -> bytes:
+    if not path.is_file():
+        raise MapError(f"{where}: file not found; check the path")
+    try:
+        return path.read_bytes()
+    except OSError as exc:
+        raise MapError(f"{where}: cannot read the file ({exc.strerror})") from None
 
 
 def load_map(source: str | os.PathLike[str] | Mapping[str, Any]) -> WorldMap:
@@ -77,13 +85,13 @@ def load_map(source: str | os.PathLike[str] | Mapping[str, Any]) -> WorldMap:
     try:
         size = path.stat().st_size if path.is_file() else 0
     except OSError:
-        size = 0  # read_bytes reports it
+        size = 0  # _read_bytes reports it
     if size > MAX_MAP_FILE_BYTES:
         raise MapError(
             f"{where}: the file is {size / 2**20:.0f} MiB; a map description (YAML/JSON) is at "
             f"most {MAX_MAP_FILE_BYTES // 2**20} MiB: give the map's YAML file, not its image"
         )
-    data = read_bytes(path, where)
+    data = _read_bytes(path, where)
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:

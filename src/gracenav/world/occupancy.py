@@ -24,8 +24,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import ndimage
 
+from gracenav._validate import check_number
 from gracenav.errors import MapError
-from gracenav.world._checks import is_real, positive_field
 from gracenav.world.geometry import (
     _EPS,
     BoolArray,
@@ -149,9 +149,9 @@ class WorldMap:
         origin = np.array(self.origin, dtype=float)
         if origin.shape != (2,) or not np.all(np.isfinite(origin)):
             raise MapError(f"{where}: map origin must be a finite (x, y) pair in m, got {origin}")
-        res = self.resolution
-        if not is_real(res) or not (math.isfinite(float(res)) and float(res) > 0.0):
-            raise MapError(f"{where}: map resolution must be a positive number of m, got {res!r}")
+        res = check_number(
+            self.resolution, "resolution", where, positive=True, unit="m", error=MapError
+        )
         occ = np.array(self.occupied, dtype=bool)
         if occ.ndim != 2 or occ.shape[0] < 1 or occ.shape[1] < 1:
             raise MapError(f"{where}: occupancy grid must be 2D and non-empty, got {occ.shape}")
@@ -217,11 +217,11 @@ class WorldMap:
             b = np.full(1, np.nan)
         if b.shape != (2, 2) or not np.all(np.isfinite(b)):
             raise MapError(f"{where}: 'bounds' must be [[xmin, ymin], [xmax, ymax]] in m")
-        positive_field(resolution, where, "resolution", "m")
-        res = float(resolution)
+        res = check_number(resolution, "resolution", where, positive=True, unit="m", error=MapError)
         if not (b[1, 0] > b[0, 0] and b[1, 1] > b[0, 1]):
             raise MapError(
-                f"{where}: 'bounds' max {tuple(b[1])} must exceed min {tuple(b[0])} in x and y; "
+                f"{where}: 'bounds' max ({b[1, 0]:g}, {b[1, 1]:g}) must exceed min "
+                f"({b[0, 0]:g}, {b[0, 1]:g}) in x and y; "
                 "give [[xmin, ymin], [xmax, ymax]]"
             )
         # Python floats: an absurd span or resolution gives inf, never an overflow warning.

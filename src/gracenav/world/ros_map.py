@@ -15,7 +15,7 @@ import json
 import os
 import re
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from pathlib import Path
 from typing import IO, Any, Literal, TypeAlias
 
@@ -24,15 +24,14 @@ from numpy.typing import NDArray
 from PIL import Image, ImageFile
 
 from gracenav._io import atomic_write_bytes, atomic_write_text
+from gracenav._validate import Fields
 from gracenav.errors import ConfigError, MapError
-from gracenav.world._checks import check_keys, positive_field, real_field
 from gracenav.world.geometry import BoolArray
 from gracenav.world.occupancy import MAX_MAP_CELLS, WorldMap, check_map_budget
 
 __all__ = ["map_from_ros_yaml", "save_ros_map"]
 
-_ROS_REQUIRED = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
-_ROS_OPTIONAL = ("mode",)
+_ROS_KEYS = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh", "mode")
 _ROS_MODES = ("trinary", "scale", "raw")
 
 # ----------------------------------------------------------------------------------------
@@ -186,56 +185,36 @@ def _open_image(fp: IO[bytes], kind: str, where: str) -> ImageFile.ImageFile:
 def map_from_ros_yaml(doc: Mapping[Any, Any], path: Path) -> WorldMap:
     """Check a map_server YAML document read from ``path`` and load the image it names.
 
+    The fields are read with :class:`gracenav._validate.Fields`; the image path is
+    relative to ``path``'s folder (or absolute), as map_server reads it.
+
     Raises
     ------
     MapError
-        If a field is missing or invalid, or the image is missing or unreadable.
+        If a field is missing or invalid, or the image is missing or unreadable; the
+        message names ``path`` and the field.
     """
     where = str(path)
-    check_keys(doc, where, "the ROS map YAML", _ROS_REQUIRED, _ROS_OPTIONAL)
-    image = doc["image"]
-    if not isinstance(image, str) or not image.strip():
-        raise MapError(f"{where}: field 'image' must be an image file name, got {image!r}")
-    res = positive_field(doc["resolution"], where, "resolution", "m")
-    origin = doc["origin"]
-    if not isinstance(origin, Sequence) or isinstance(origin, str | bytes) or len(origin) != 3:
-        raise MapError(f"{where}: field 'origin' must be [x, y, yaw] (m, m, rad), got {origin!r}")
-    ox = real_field(origin[0], where, "origin[0]", "m")
-    oy = real_field(origin[1], where, "origin[1]", "m")
-    yaw = real_field(origin[2], where, "origin[2]", "rad")
+    f = Fields(doc, "", where, error=MapError)
+    f.check_keys(_ROS_KEYS)
+    res = f.number("resolution", positive=True, unit="m")
+    ox, oy, yaw = f.vector("origin", 3, what="[x, y, yaw] (m, m, rad)")
     if yaw != 0.0:
-        raise MapError(
-            f"{where}: field 'origin' has yaw {yaw:g} rad; rotated maps are unsupported: "
-            "rotate the image so the map axes align with the world and set yaw to 0"
+        raise f.fail(
+            f"'origin' has yaw {yaw:g} rad; rotated maps are unsupported: rotate the image so "
+            "the map axes align with the world and set yaw to 0"
         )
-    negate = doc["negate"]
-    if negate not in (0, 1) or not isinstance(negate, int):
-        raise MapError(f"{where}: field 'negate' must be 0 or 1, got {negate!r}")
-    occ_th = real_field(doc["occupied_thresh"], where, "occupied_thresh")
-    free_th = real_field(doc["free_thresh"], where, "free_thresh")
-    for label, th in (("occupied_thresh", occ_th), ("free_thresh", free_th)):
-        if not 0.0 <= th <= 1.0:
-            raise MapError(f"{where}: field '{label}' must be in [0, 1], got {th:g}")
+    negate = f.integer("negate", minimum=0, maximum=1)
+    occ_th = f.number("occupied_thresh", minimum=0.0, maximum=1.0)
+    free_th = f.number("free_thresh", minimum=0.0, maximum=1.0)
     if occ_th <= free_th:
-        raise MapError(
-            f"{where}: field 'occupied_thresh' ({occ_th:g}) must exceed 'free_thresh' "
-            f"({free_th:g}); typical values are 0.65 and 0.196"
+        raise f.fail(
+            f"'occupied_thresh' ({occ_th:g}) must exceed 'free_thresh' ({free_th:g}); "
+            "typical values are 0.65 and 0.196"
         )
-    mode = doc.get("mode", "trinary")
-    if mode not in _ROS_MODES:
-        raise MapError(
-            f"{where}: field 'mode' must be one of {', '.join(_ROS_MODES)}, got {mode!r}"
-        )
-    image_path = Path(image)
-    if not image_path.is_absolute():
-        image_path = path.parent / image_path
-    image_where = f"{where}: field 'image' ({image_path})"
-    if not image_path.is_file():
-        raise MapError(
-            f"{where}: field 'image': file {image_path} not found; the image path is relative "
-            "to the YAML file's folder"
-        )
-    pixels, maxval, has_alpha = _decode_image(image_path, image_where)
+    mode = f.choice("mode", _ROS_MODES, "trinary")
+    image_path = f.file("image", path.parent)
+    pixels, maxval, has_alpha = _decode_image(image_path, f"{where}: 'image' ({image_path})")
     occupied, unknown = _classify(pixels, maxval, has_alpha, bool(negate), occ_th, free_th, mode)
     return WorldMap(
         np.array([ox, oy]),

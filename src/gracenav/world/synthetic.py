@@ -6,8 +6,7 @@ import itertools
 
 import numpy as np
 
-from gracenav.errors import ConfigError
-from gracenav.world._checks import is_real
+from gracenav._validate import check_number
 from gracenav.world.geometry import Circle, Rectangle, Shape
 from gracenav.world.occupancy import DEFAULT_RESOLUTION, WorldMap
 
@@ -40,9 +39,10 @@ def office_map(
     WorldMap
         Bounds ((0, 0), (size, size)), with its shapes.
     """
-    if not is_real(size) or not float(size) >= 14.0:
-        raise ConfigError(f"office_map size must be a number >= 14 m, got {size!r}")
-    size = float(size)
+    size = check_number(size, "size", "office_map", minimum=14.0, unit="m")
+    resolution = check_number(
+        resolution, "resolution", "office_map", positive=True, maximum=0.1, unit="m"
+    )
     rng = np.random.default_rng(seed)
     shapes: list[Shape] = []
     outer, part = 0.2, 0.1
