@@ -269,7 +269,7 @@ def test_halvings_over_budget_give_the_estimate(tmp_path, capsys) -> None:
     [
         ({"task.starts": [[9.0, 9.0, 0, 0]]}, "'task.starts[0]' (9, 9) is outside the map"),
         ({"task.goal": [0.1, 0.1, 0, 0]}, "'task.goal' (0.1, 0.1) is inside an obstacle"),
-        ({"task.goal": [2.1, 1.47, 0.3, 0]}, "'task.goal': goal (2.1, 1.47, 0.3, 0.0) is outside"),
+        ({"task.goal": [2.1, 1.47, 0.3, 0]}, "'task.goal': goal (2.1, 1.47, 0.3, 0) is outside"),
         (
             # 1.5 m/s: faster than any start domain reaches (the capture trim: 0.64 m/s)
             {"task.starts": [[1.0, 1.5, 0, 0], [1.1, 1.43, 1.5, 0]]},

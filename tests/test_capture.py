@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from gracenav import BallbotParams, ConfigError
+from gracenav.errors import PlanningError
 from gracenav.execution import EventReason, HybridController, TaskStatus
 from gracenav.graph import build_graph, gracefully_prepares
 from gracenav.library import build_library
@@ -208,3 +209,62 @@ def test_a_pushed_robot_is_caught_by_a_regulator_and_reaches_the_goal(palette, r
     assert ep.events[0].to_policy in idx
     assert lib.policy(ep.events[0].to_policy).policy.capture
     assert not any(e.reason is EventReason.BALANCING for e in ep.events)
+
+
+@pytest.fixture(scope="module")
+def box_room_controller(palette):
+    wm = load_map(
+        {
+            "bounds": [[0.0, 0.0], [5.0, 5.0]],
+            "resolution": 0.05,
+            "obstacles": [{"rectangle": {"min": [2.0, 2.0], "max": [3.0, 3.0]}}],
+        }
+    )
+    lib = build_library(palette, wm, footprint_radius=0.2, max_halvings=1)
+    return HybridController(lib, build_graph(lib))
+
+
+@pytest.mark.parametrize("goal", [(1.13, 1.37), (4.02, 3.61), (0.9, 4.1)])
+def test_goals_off_the_lattice_are_reached_within_a_millimetre(box_room_controller, goal) -> None:
+    hc = box_room_controller
+    g = np.array([*goal, 0.0, 0.0])
+    terms = hc.terminal_policies(g)
+    assert terms, "a terminal regulator fits there"
+    term = terms[0]
+    # Its S contains the G of the rest trim the task approaches (G ⊂ S, exactly), and
+    # its D' grown by the footprint is clear of obstacles.
+    approach = hc.library.policy(term.approach)
+    assert term.start_domain.contains_domain(approach.goal_domain)
+    reach = term.policy.outer_factors[0] * term.policy.start_radii.position
+    assert hc.library.world_map.clearance(g[None, :2])[0] >= hc.library.footprint_radius + reach
+    start = [4.0, 4.0, 0.0, 0.0] if goal[0] < 2.5 else [1.0, 1.0, 0.0, 0.0]
+    ep = hc.run(state_from_position(start, PARAMS.ball_radius), [g])
+    assert ep.status is TaskStatus.GOAL_REACHED
+    assert ep.events[-1].reason is EventReason.TERMINAL
+    p = ep.position_state[-1]
+    assert np.hypot(*(p[:2] - g[:2])) <= 1e-3
+    assert np.hypot(*p[2:]) <= 1e-3
+    # The terminal regulator stayed in its outer domain (its run ended in its G).
+    assert term.goal_domain.contains(p)
+
+
+@pytest.mark.parametrize("goal", [(4.25, 3.75), (3.75, 0.75), (0.75, 4.25)])
+def test_goals_on_the_other_sub_lattice_are_reached(box_room_controller, goal) -> None:
+    """Maneuvers move by whole multiples of d, so the halved lattice splits into
+    sub-lattices that maneuvers alone do not connect; a goal trim on another
+    sub-lattice than the start is still reached (through a capture regulator's S or a
+    terminal regulator at the goal)."""
+    hc = box_room_controller
+    start = np.array([1.0, 1.0, 0.0, 0.0])
+    g = np.array([*goal, 0.0, 0.0])
+    row = hc.goal_policy(g)
+    assert np.allclose(hc.library.end_state[row], g)  # the goal is a lattice trim
+    ep = hc.run(state_from_position(start, PARAMS.ball_radius), [g])
+    assert ep.status is TaskStatus.GOAL_REACHED
+    assert np.hypot(*(ep.position_state[-1, :2] - g[:2])) <= 0.05
+
+
+def test_a_goal_too_close_to_a_wall_for_any_regulator_says_why(box_room_controller) -> None:
+    hc = box_room_controller
+    with pytest.raises(PlanningError, match="no capture regulator fits there"):
+        hc.goal_policy([0.27, 2.63, 0.0, 0.0])

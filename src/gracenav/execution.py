@@ -23,12 +23,13 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from gracenav.domains import EllipsoidalDomain
 from gracenav.errors import ConfigError, PlanningError
 from gracenav.graph import PreparesGraph
 from gracenav.library import PolicyLibrary
 from gracenav.params import BallbotParams
 from gracenav.planning import CostCriterion, PolicyTree, plan_tree
-from gracenav.policies import PrimitiveKind, instantiated_reference
+from gracenav.policies import MotionPolicy, PrimitiveKind, instantiated_reference
 from gracenav.simulate import (
     BodyForce,
     Disturbance,
@@ -44,12 +45,14 @@ from gracenav.simulate import (
 )
 
 __all__ = [
+    "TERMINAL",
     "Episode",
     "EventReason",
     "ExecutionOptions",
     "HybridController",
     "SwitchEvent",
     "TaskStatus",
+    "TerminalPolicy",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -67,6 +70,9 @@ class EventReason(enum.Enum):
     NOT_IN_GOAL = "not_in_goal"
     BALANCING = "balancing"
     RECOVERED = "recovered"
+    TERMINAL = "terminal"
+    """The goal is off the lattice: a capture regulator at the goal takes over from a
+    rest trim whose G lies in its S (the reference steps to the goal)."""
 
     @property
     def graceful(self) -> bool:
@@ -253,6 +259,57 @@ class Episode:
 #: a switch can do that once) before the task stops with TaskStatus.NO_PROGRESS.
 _MAX_STALLED_SEGMENTS = 8
 
+#: Distance (m, m/s) within which a goal counts as the end state of a lattice trim.
+_ON_LATTICE = 1e-9
+
+#: Policy index of the terminal regulator in :attr:`Episode.policy` and
+#: :class:`SwitchEvent` (it is not a library row; −1 is balancing mode).
+TERMINAL = -2
+
+
+@dataclass(frozen=True)
+class TerminalPolicy:
+    """A capture regulator of the palette instantiated at a goal off the lattice.
+
+    Attributes
+    ----------
+    policy : MotionPolicy
+        The palette's capture regulator (rest reference, its own S, fixed D').
+    goal_xy : ndarray, shape (2,)
+        Where it holds the robot (m).
+    approach : int
+        The library rest trim the task reaches first; its G lies in this S.
+    """
+
+    policy: MotionPolicy
+    goal_xy: NDArray[np.float64]
+    approach: int
+
+    def _at_goal(self, local: EllipsoidalDomain) -> EllipsoidalDomain:
+        c = np.array(local.center, dtype=float)
+        c[:2] += self.goal_xy
+        return EllipsoidalDomain(c, local.shape_matrix)
+
+    @property
+    def start_domain(self) -> EllipsoidalDomain:
+        """S in the world frame."""
+        return self._at_goal(self.policy.start_domain)
+
+    @property
+    def goal_domain(self) -> EllipsoidalDomain:
+        """G in the world frame."""
+        return self._at_goal(self.policy.goal_domain)
+
+    def outer_domain(self, t: float) -> EllipsoidalDomain:
+        """D'(t) in the world frame."""
+        return self._at_goal(self.policy.outer_domain(t))
+
+    @property
+    def name(self) -> str:
+        """E.g. ``regulate[ep=0.55m]@(1.23, 2.5)``."""
+        x, y = self.goal_xy
+        return f"{self.policy.name}@({x:g}, {y:g})"
+
 
 def _segment_disturbances(
     disturbances: Sequence[Disturbance], t0: float, dt: float, nt: int, applied: set[int]
@@ -356,18 +413,22 @@ class HybridController:
         self.params = params if params is not None else self.palette.params
         self._adjacency = graph.csc(self.criterion.value)
         self._trees: dict[int, PolicyTree] = {}
+        self._terminals: dict[tuple[float, ...], tuple[TerminalPolicy, ...]] = {}
         self.tree_seconds: list[float] = []
 
     # -- planning ------------------------------------------------------------------
     def goal_policy(self, goal: ArrayLike) -> int:
         """The closest trim policy (Euclidean, to its G's centre; the shortest of equally
-        close ones) whose G contains ``goal``.
+        close ones) whose G contains ``goal``; for a goal at rest that no trim's G
+        contains, the rest trim the task ends on before the terminal regulator at the
+        goal takes over (:meth:`terminal_policies`).
 
         Raises
         ------
         PlanningError
             If the goal is outside the map, in an obstacle (grown by the footprint), or
-            no trim policy's goal domain contains it (outside coverage).
+            no trim policy's goal domain contains it and no terminal regulator fits
+            there (outside coverage).
         """
         g = np.asarray(goal, dtype=float)
         if g.shape != (4,) or not np.all(np.isfinite(g)):
@@ -394,13 +455,81 @@ class HybridController:
             if self.library.policy(int(i)).goal_domain.contains(g):
                 candidates.append(int(i))
                 break
-        if not candidates:
+        at_rest = bool(np.all(g[2:] == 0.0))
+        exact = bool(candidates) and bool(
+            np.linalg.norm(self.library.end_state[candidates[0]] - g) <= _ON_LATTICE
+        )
+        if candidates and (exact or not at_rest):
+            return candidates[0]
+        # A goal at rest off the lattice: a terminal regulator brings the robot onto it;
+        # without one, the trim whose G contains it (within G's extent of the goal).
+        terminals = self.terminal_policies(g) if at_rest else ()
+        if terminals:
+            return terminals[0].approach
+        if candidates:
+            return candidates[0]
+        where = ", ".join(f"{v:g}" for v in g)
+        if np.all(g[2:] == 0.0):
             raise PlanningError(
-                f"goal {tuple(float(v) for v in g)} is outside coverage: no trim policy of the "
-                "library has it in its goal domain (put the goal on the instantiation lattice, "
-                "at rest or at a cruise velocity, away from obstacles)"
+                f"goal ({where}) is outside coverage: no trim policy of the library has it in "
+                "its goal domain and no capture regulator fits there (it needs a clearance of "
+                "the footprint plus its outer domain radius, and a rest trim of the library "
+                "within its start domain); move the goal away from obstacles or use more "
+                "lattice halvings"
             )
-        return candidates[0]
+        raise PlanningError(
+            f"goal ({where}) is outside coverage: a moving goal must be a cruise trim of the "
+            "library (on the instantiation lattice, at a trim velocity, away from obstacles)"
+        )
+
+    def _terminal(self, goal: ArrayLike, goal_id: int) -> TerminalPolicy | None:
+        """The terminal regulator a task toward ``goal`` ends with, if ``goal_id`` is the
+        approach trim :meth:`goal_policy` chose for it."""
+        terms = self._terminals.get(tuple(float(v) for v in np.asarray(goal, dtype=float)))
+        for term in terms or ():
+            if term.approach == goal_id:
+                return term
+        return None
+
+    def terminal_policies(self, goal: ArrayLike) -> tuple[TerminalPolicy, ...]:
+        """Terminal regulators for a goal at rest off the lattice, best first.
+
+        For each capture regulator of the palette, largest first, whose outer domain
+        (a disc of radius ``outer_factors[0]`` × e_p(S) around the goal, not shrinking)
+        grown by the footprint is clear of obstacles: every rest trim of the library
+        whose G lies in the regulator's S at the goal (exact ellipsoid containment),
+        nearest first. Empty when the palette has no regulators or none fits.
+        """
+        g = np.asarray(goal, dtype=float)
+        key = tuple(float(v) for v in g)
+        got = self._terminals.get(key)
+        if got is not None:
+            return got
+        lib = self.library
+        clearance = float(lib.world_map.clearance(g[None, :2])[0]) - lib.footprint_radius
+        rest = lib.trim_indices(PrimitiveKind.REST)
+        out: list[TerminalPolicy] = []
+        regs = sorted(
+            (p for p in self.palette.policies if p.capture),
+            key=lambda p: -p.start_radii.position,
+        )
+        for reg in regs:
+            reach = reg.outer_factors[0] * reg.start_radii.position
+            if clearance < reach:
+                continue
+            ends = lib.end_state[rest]
+            dist = np.linalg.norm(ends[:, :2] - g[:2], axis=1)
+            near = np.flatnonzero(dist <= reg.start_radii.position)
+            near = near[np.lexsort((lib.durations[rest[near]], dist[near]))]
+            for i in rest[near]:
+                term = TerminalPolicy(reg, g[:2].copy(), int(i))
+                if term.start_domain.contains_domain(lib.policy(int(i)).goal_domain):
+                    out.append(term)
+            if out:
+                break
+        result = tuple(out)
+        self._terminals[key] = result
+        return result
 
     def tree(self, goal_policy: int) -> PolicyTree:
         """The single-goal optimal tree toward library row ``goal_policy`` (cached)."""
@@ -477,15 +606,31 @@ class HybridController:
         if len(goals) == 0:
             raise ConfigError("a task needs at least one goal")
         goal_ids = [self.goal_policy(g) for g in goals]
-        sequence = goal_ids * loops
-        goal_states = [np.asarray(g, dtype=float) for g in goals] * loops
+        terminals: list[TerminalPolicy | None] = [
+            self._terminal(g, i) for g, i in zip(goals, goal_ids, strict=True)
+        ]
         dt = 1.0 / 1024.0
         r = self.gains.params.ball_radius  # the controller's (measured) position states
         x = np.asarray(x0, dtype=float).copy()
         p = position_state(x, r)
-        k_goal = 0
-        tree = self.tree(sequence[0])
+        tree = self.tree(goal_ids[0])
         current = self.best_policy(p, tree)
+        if current < 0 and len(goals) == 1:
+            # The goal's trim may lie on a sub-lattice the start cannot reach (maneuvers
+            # move by whole multiples of d): approach it through another rest trim whose
+            # G lies in a terminal regulator at the goal.
+            for cand in self.terminal_policies(goals[0]):
+                tree = self.tree(cand.approach)
+                current = self.best_policy(p, tree)
+                if current >= 0:
+                    goal_ids, terminals = [cand.approach], [cand]
+                    break
+            else:
+                tree = self.tree(goal_ids[0])
+        sequence = goal_ids * loops
+        terminal_seq = terminals * loops
+        goal_states = [np.asarray(g, dtype=float) for g in goals] * loops
+        k_goal = 0
         if current < 0:
             hits = self.library.start_domain_contains(p[None, :])
             why = (
@@ -505,13 +650,20 @@ class HybridController:
         stalled = 0  # consecutive policies that ended at their first tick
         status = TaskStatus.TIMEOUT
         while ticks < max_ticks:
-            inst = self.library.policy(current)
-            prim = inst.policy.primitive
-            ref, ref_pos = instantiated_reference(prim, inst.orientation, inst.start_xy, r)
-            # Domain shapes are invariant under rotations of the plane: only the
-            # centres move with the instantiation.
-            _, shapes = inst.policy.outer_monitor()
-            is_goal = current == sequence[k_goal]
+            term = terminal_seq[k_goal]
+            if current == TERMINAL and term is not None:
+                prim = term.policy.primitive
+                ref, ref_pos = instantiated_reference(prim, 0, term.goal_xy, r)
+                _, shapes = term.policy.outer_monitor()
+                is_goal = False
+            else:
+                inst = self.library.policy(current)
+                prim = inst.policy.primitive
+                ref, ref_pos = instantiated_reference(prim, inst.orientation, inst.start_xy, r)
+                # Domain shapes are invariant under rotations of the plane: only the
+                # centres move with the instantiation.
+                _, shapes = inst.policy.outer_monitor()
+                is_goal = current == sequence[k_goal]
             if is_goal and k_goal + 1 < len(sequence):
                 # Regenerate the tree for the next goal while the last policy to the
                 # current goal runs (paper Sec. V-C).
@@ -552,12 +704,32 @@ class HybridController:
             if stalled > _MAX_STALLED_SEGMENTS:
                 status = TaskStatus.NO_PROGRESS
                 break
+            g = goal_states[k_goal]
+            near_goal = bool(
+                np.linalg.norm(p[:2] - g[:2]) <= options.goal_tolerance
+                and np.linalg.norm(p[2:] - g[2:]) <= options.goal_tolerance
+            )
             if res.stop_reason is StopReason.DOMAIN_EXIT:
                 reason = EventReason.DOMAIN_EXIT
                 nxt = self.best_policy(p, tree)
+            elif current == TERMINAL and term is not None:
+                if near_goal:
+                    goals_reached.append((t, k_goal))
+                    status = TaskStatus.GOAL_REACHED
+                    break
+                if term.start_domain.contains(p):
+                    reason, nxt = EventReason.HOLD_GOAL, TERMINAL
+                else:
+                    reason, nxt = EventReason.NOT_IN_GOAL, self.best_policy(p, tree)
             elif not inst.goal_domain.contains(p):
                 reason = EventReason.NOT_IN_GOAL
                 nxt = self.best_policy(p, tree)
+            elif is_goal and term is not None:
+                # Off-lattice goal: the terminal regulator takes over from the rest trim.
+                if term.start_domain.contains(p):
+                    reason, nxt = EventReason.TERMINAL, TERMINAL
+                else:
+                    reason, nxt = EventReason.HOLD_GOAL, current
             elif is_goal:
                 goals_reached.append((t, k_goal))
                 if k_goal + 1 < len(sequence):
@@ -572,11 +744,7 @@ class HybridController:
                     status = TaskStatus.LOOPS_COMPLETED
                     break
                 else:
-                    g = goal_states[k_goal]
-                    if (
-                        np.linalg.norm(p[:2] - g[:2]) <= options.goal_tolerance
-                        and np.linalg.norm(p[2:] - g[2:]) <= options.goal_tolerance
-                    ):
+                    if near_goal:
                         status = TaskStatus.GOAL_REACHED
                         break
                     reason, nxt = EventReason.HOLD_GOAL, current
@@ -589,7 +757,7 @@ class HybridController:
             if ticks >= max_ticks:
                 status = TaskStatus.TIMEOUT
                 break
-            if nxt < 0:
+            if nxt == -1:
                 # Balancing mode: station keeping at the nearest rest-trim start of the
                 # library from which the goal is reachable, checking every chunk whether
                 # some policy's S now contains the state; the task stops if none does

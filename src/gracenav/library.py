@@ -898,7 +898,10 @@ def _instantiate(
         sure_q: list[IntArray] = []
         undecided_t: list[IntArray] = []
         undecided_q: list[IntArray] = []
-        for t in np.flatnonzero(types.start_radii[:, 0] == size):
+        # A capture regulator is invariant under rotations (rest reference, round
+        # domains in the plane): one orientation suffices.
+        placed = (types.start_radii[:, 0] == size) & ~(types.is_capture & (types.orientation > 0))
+        for t in np.flatnonzero(placed):
             maybe = np.flatnonzero(
                 (c0 >= footprint + tables["sample_first_reach"][t]) & ~taken[types.scale_group[t]]
             )

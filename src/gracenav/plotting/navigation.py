@@ -211,9 +211,9 @@ def animate_episode(result: Any, run: int, path: str | Path, *, fps: int = 10) -
         tip = p[i, :2] + lean_scale * lean[i]
         body.set_data([p[i, 0], tip[0]], [p[i, 1], tip[1]])
         pid = int(ep.policy[i])
-        if pid < 0:
+        if pid < 0:  # -1 balancing mode, -2 the terminal regulator at the goal
             dom.set_data([], [])
-            return f"t = {ep.time[i]:5.1f} s  balancing"
+            return f"t = {ep.time[i]:5.1f} s  {'balancing' if pid == -1 else 'terminal'}"
         name, xs, ys = outer_domain_outline(lib, ep, i, policies, ang)
         dom.set_data(xs, ys)
         return f"t = {ep.time[i]:5.1f} s  {name}"
