@@ -268,3 +268,37 @@ def test_a_goal_too_close_to_a_wall_for_any_regulator_says_why(box_room_controll
     hc = box_room_controller
     with pytest.raises(PlanningError, match="no capture regulator fits there"):
         hc.goal_policy([0.27, 2.63, 0.0, 0.0])
+
+
+def test_balancing_mode_never_drives_toward_an_obstacle(box_room_controller) -> None:
+    """The point balancing mode holds is reached along a segment that keeps the
+    footprint + 5 cm clear (or the robot's own clearance if smaller), and it is the
+    nearest such rest-trim start: checked against a brute force over every candidate
+    with segments sampled every 5 mm (the controller samples every 5 cm map cell, so
+    in between the clearance may dip by half a cell: clearance is 1-Lipschitz)."""
+    hc = box_room_controller
+    lib = hc.library
+    wm = lib.world_map
+    tree = hc.tree(hc.goal_policy([4.0, 4.0, 0.0, 0.0]))
+    rest = lib.trim_indices()
+    rest = rest[np.isfinite(tree.cost_to_go[rest]) | (rest == tree.goal)]
+    cands = lib.start_xy[rest]
+    half_cell = 0.5 * float(wm.resolution)
+    rng = np.random.default_rng(11)
+    xy = rng.uniform(0.0, 5.0, size=(600, 2))
+    xy = xy[wm.clearance(xy) >= 0.2][:80]
+    for here in xy:
+        q = hc._recovery_point(np.array([*here, 0.0, 0.0]), tree)
+        need = min(0.25, float(wm.clearance(here[None, :])[0]))
+
+        def min_clearance(c: np.ndarray, here: np.ndarray = here) -> float:
+            n = int(np.ceil(np.linalg.norm(c - here) / 0.005)) + 1
+            seg = here + np.linspace(0.0, 1.0, n)[1:, None] * (c - here)
+            return float(np.min(wm.clearance(seg))) if len(seg) else np.inf
+
+        assert min_clearance(q) >= need - half_cell
+        d = np.linalg.norm(cands - here, axis=1)
+        nearest = cands[np.argsort(d, kind="stable")[:64]]  # the controller's search
+        surely = [c for c in nearest if min_clearance(c) >= need + half_cell]
+        if surely:
+            assert np.linalg.norm(q - here) <= np.linalg.norm(surely[0] - here) + 1e-9

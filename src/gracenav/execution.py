@@ -259,6 +259,12 @@ class Episode:
 #: a switch can do that once) before the task stops with TaskStatus.NO_PROGRESS.
 _MAX_STALLED_SEGMENTS = 8
 
+#: Clearance (m) beyond the footprint that balancing mode keeps on its way to the
+#: point it holds (see HybridController._recovery_point).
+_BALANCING_MARGIN = 0.05
+#: Nearest rest-trim starts balancing mode considers as the point to hold.
+_BALANCING_SEARCH = 64
+
 #: Distance (m, m/s) within which a goal counts as the end state of a lattice trim.
 _ON_LATTICE = 1e-9
 
@@ -542,14 +548,32 @@ class HybridController:
         return tree
 
     def _recovery_point(self, p: FloatArray, tree: PolicyTree) -> FloatArray:
-        """The start of the nearest rest trim of the library that reaches the goal (the
-        current position if there is none)."""
+        """Where balancing mode holds the robot: the start of the nearest rest trim of
+        the library that reaches the goal and that the robot can be driven to without
+        driving toward an obstacle: along the straight segment from the robot to it
+        (sampled every map cell) the clearance stays at least the footprint plus
+        :data:`_BALANCING_MARGIN`, or the robot's own clearance if that is smaller. The
+        current position if none of the :data:`_BALANCING_SEARCH` nearest qualifies."""
+        here = np.asarray(p[:2], dtype=float)
         rest = self.library.trim_indices(PrimitiveKind.REST)
         rest = rest[np.isfinite(tree.cost_to_go[rest]) | (rest == tree.goal)]
         if rest.size == 0:
-            return np.asarray(p[:2], dtype=float)
+            return here
         xy = self.library.start_xy[rest]
-        return np.asarray(xy[int(np.argmin(np.linalg.norm(xy - p[:2], axis=1)))], dtype=float)
+        order = np.argsort(np.linalg.norm(xy - here, axis=1), kind="stable")[:_BALANCING_SEARCH]
+        wm = self.library.world_map
+        # A robot already nearer than that to an obstacle may not get any nearer.
+        need = min(
+            self.library.footprint_radius + _BALANCING_MARGIN,
+            float(wm.clearance(here[None, :])[0]),
+        )
+        step = float(wm.resolution)
+        for q in xy[order]:
+            n = max(2, int(np.ceil(np.linalg.norm(q - here) / step)) + 1)
+            seg = here + np.linspace(0.0, 1.0, n)[:, None] * (q - here)
+            if np.all(wm.clearance(seg[1:]) >= need):
+                return np.asarray(q, dtype=float)
+        return here
 
     def best_policy(self, p: ArrayLike, tree: PolicyTree) -> int:
         """The policy with the lowest cost-to-go whose S contains ``p`` (−1 if none).
