@@ -32,6 +32,8 @@ def register(sub: Any) -> None:
             "run whose footprint touched an obstacle or the map edge (the simulated robot "
             "passes through them) has outcome contact, does not count as reaching its goal "
             "and the command exits with status 1. "
+            "The scenario's simulation.plant_params factors scale the simulated robot's "
+            "parameters (the --params file's if given). "
             "The scenario format is described in README.md."
         ),
     )

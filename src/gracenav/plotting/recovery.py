@@ -297,7 +297,9 @@ def plot_recovery(
     proportional to the impulse, labelled in N s) and each drag as the hand's
     displacement, the start domains S of the policies executed from the disturbance
     until the motion is graceful again, D'(t) where the state left it (dotted), and the
-    switches: graceful (dots) and forced (red crosses).
+    switches: graceful (dots) and forced (red crosses). Paths and markers are where the
+    plant truly is; domains are in the controller's coordinates (the two differ by the
+    ratio of the ball radii when the plant's is not the palette's).
 
     Parameters
     ----------
