@@ -193,3 +193,77 @@ def test_goal_policy_is_the_shortest_of_equally_near_trims(controller: HybridCon
     ends on the rest trim, not on a 2 s longer hold."""
     goal = controller.library.policy(controller.goal_policy([2.0, 2.0, 0.0, 0.0]))
     assert goal.policy.primitive.name == "rest" and goal.duration == pytest.approx(1.0)
+
+
+# -- contact: the simulated robot passes through walls; the summary must say so ----------
+
+
+def test_a_drag_into_a_wall_is_contact_not_a_reached_goal(tmp_path, capsys) -> None:
+    """Dragged 1 m through the wall at x = -1 m, the robot comes back and its controller
+    reaches the goal; the run must still not count as reaching it."""
+    data = yaml.safe_load((SCENARIOS / "fig5_point_to_point.yaml").read_text())
+    data["task"]["starts"] = [[0.0, 0.0, 0.0, 0.0]]
+    data["disturbances"] = [
+        {"kind": "drag", "start_time": 0.5, "end_time": 1.5, "velocity": [-1.0, 0.0]}
+    ]
+    path = tmp_path / "wall.yaml"
+    path.write_text(yaml.safe_dump(data))
+    out = tmp_path / "out"
+    status = main(["run", str(path), "--out", str(out), "--no-animation"])
+    captured = capsys.readouterr()
+    assert status == 1
+    lines = captured.err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("gracenav: contact: ")
+    assert "run 1 at t = " in lines[0]
+    run = json.loads((out / "summary.json").read_text())["runs"][0]
+    assert run["stop_reason"] == "goal_reached"  # what the controller reported
+    assert run["contact"] is True and run["outcome"] == "contact"
+    assert run["reached_goal"] is False
+    assert run["min_clearance_m"] < 0.0
+    # The footprint (0.2 m) reaches the wall at x = -1 m when the ball passes x = -0.8 m:
+    # the drag starts at 0.5 s and moves the body at up to 1 m/s.
+    trajectory = np.loadtxt(out / "trajectory.csv", delimiter=",", skiprows=1, usecols=(1, 2))
+    t_contact = run["contact_time_s"]
+    first = int(np.flatnonzero(trajectory[:, 1] < -0.8)[0])
+    assert 0.5 < t_contact < 1.5
+    assert t_contact == pytest.approx(trajectory[first, 0], abs=2.0 / 1024.0)
+    assert "touched an obstacle at t = " in captured.out
+
+
+def test_run_summary_contact_and_outcome() -> None:
+    from gracenav.scenarios import RunSummary
+
+    fields = {
+        "start": (0.0, 0.0, 0.0, 0.0),
+        "stop_reason": "goal_reached",
+        "time_s": 1.0,
+        "path_length_m": 1.0,
+        "final_error_m": 0.0,
+        "final_speed_mps": 0.0,
+        "max_lean_deg": 1.0,
+        "max_torque_nm": 1.0,
+        "max_jerk_mps3": 1.0,
+        "switches": 0,
+        "non_graceful_switches": 0,
+        "max_graceful_torque_jump_nm": 0.0,
+        "goals_reached": 1,
+        "tree_ms": 0.1,
+    }
+    clear = RunSummary(reached_goal=True, min_clearance_m=0.1, **fields)
+    assert clear.outcome == "goal_reached" and not clear.contact
+    d = clear.to_dict()
+    assert list(d)[:6] == [
+        "start",
+        "reached_goal",
+        "outcome",
+        "stop_reason",
+        "contact",
+        "contact_time_s",
+    ]
+    assert d["contact_time_s"] is None
+    touched = RunSummary(
+        reached_goal=False, min_clearance_m=-0.01, contact=True, contact_time_s=0.5, **fields
+    )
+    assert touched.outcome == "contact" and touched.to_dict()["outcome"] == "contact"
+    with pytest.raises(ValueError, match="contact cannot have reached"):
+        RunSummary(reached_goal=True, min_clearance_m=-0.01, contact=True, **fields)

@@ -17,7 +17,13 @@ A scenario file (YAML) has these keys (SI units; positions in m, velocities in m
     disturbances:                           # optional
       - {kind: push, time: 3.0, impulse: [10, 0]}                         # N s on the body
       - {kind: drag, start_time: 3, end_time: 5, velocity: [0, -0.3]}     # held and moved
-    simulation: {plant: model3d, seed: 0, position_noise_std: 0.0, max_time: 120}
+    simulation: {plant: model3d, seed: 0, position_noise_std: 0.0, max_time: 120,
+                 plant_params: {ball_radius: 1.02, body_mass: 0.8}}  # factors, optional
+
+``simulation.plant_params`` scales the simulated robot's physical parameters
+(:data:`PLANT_FACTOR_FIELDS`, :class:`~gracenav.params.BallbotParams` names) by
+dimensionless factors within :data:`PLANT_FACTOR_RANGE`; the controllers keep the
+palette's design (model mismatch).
 
 The file is UTF-8 YAML without duplicate keys. Unknown keys, values of the wrong type
 and values beyond the limits below (``MAX_*``: runs, loops, simulated time, library size)
@@ -27,6 +33,7 @@ heavy work.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import time
@@ -47,6 +54,7 @@ __all__ = [
     "RunSummary",
     "Scenario",
     "ScenarioResult",
+    "apply_plant_factors",
     "check_scenario",
     "estimate_instantiations",
     "load_scenario",
@@ -85,6 +93,10 @@ class Scenario:
     max_time : float
         (s)
     source : str
+    plant_factors : tuple of (str, float)
+        Factors (dimensionless) of the simulated plant's parameters, by
+        :class:`~gracenav.params.BallbotParams` field name, in file order; empty: the
+        plant has the parameters it is given (see :func:`run_scenario`).
     """
 
     name: str
@@ -102,6 +114,7 @@ class Scenario:
     position_noise_std: float
     max_time: float
     source: str = "scenario"
+    plant_factors: tuple[tuple[str, float], ...] = ()
 
 
 _TOP = ("name", "map", "robot", "planner", "task", "disturbances", "simulation")
@@ -135,6 +148,24 @@ MAX_FOOTPRINT_M = 5.0
 """Largest footprint radius (m)."""
 MAX_NOISE_STD_M = 1.0
 """Largest position noise standard deviation (m)."""
+PLANT_FACTOR_RANGE = (0.5, 2.0)
+"""Allowed factors of ``simulation.plant_params`` (dimensionless, inclusive): half to
+twice the nominal value, a model error far beyond what a robot's data sheet leaves."""
+PLANT_FACTOR_FIELDS = (
+    "ball_radius",
+    "ball_mass",
+    "ball_inertia",
+    "body_mass",
+    "body_com_height",
+    "body_inertia_x",
+    "body_inertia_y",
+    "body_inertia_z",
+    "coulomb_friction",
+    "viscous_friction",
+    "torque_limit",
+)
+"""The plant parameters ``simulation.plant_params`` may scale: the robot's physical
+properties. Not gravity, the friction model's smoothing or the drawn body radius."""
 
 
 def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = None) -> Scenario:
@@ -169,8 +200,9 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
     cost = planner.choice("cost", ("time", "distance"), "time")
     halvings = planner.integer("max_halvings", 1, maximum=20)
     sim = top.sub("simulation", {})
-    sim.check_keys({"plant", "seed", "position_noise_std", "max_time"})
+    sim.check_keys({"plant", "seed", "position_noise_std", "max_time", "plant_params"})
     plant = sim.choice("plant", ("model3d", "mujoco"), "model3d")
+    plant_factors = _plant_factors(sim)
     noise = sim.number("position_noise_std", 0.0, minimum=0.0, maximum=MAX_NOISE_STD_M, unit="m")
     seed = sim.integer("seed", 0, maximum=2**32 - 1)
     max_time = sim.number("max_time", 120.0, positive=True, unit="s")
@@ -249,7 +281,24 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         position_noise_std=noise,
         max_time=max_time,
         source=source,
+        plant_factors=plant_factors,
     )
+
+
+def _plant_factors(sim: Fields) -> tuple[tuple[str, float], ...]:
+    """``simulation.plant_params``: factors by field name, each in PLANT_FACTOR_RANGE."""
+    factors = sim.sub("plant_params", {})
+    factors.check_keys(PLANT_FACTOR_FIELDS)
+    low, high = PLANT_FACTOR_RANGE
+    return tuple((str(k), factors.number(str(k), minimum=low, maximum=high)) for k in factors.data)
+
+
+def apply_plant_factors(scenario: Scenario, base: BallbotParams) -> BallbotParams:
+    """The simulated plant's parameters: ``base`` with the scenario's
+    ``simulation.plant_params`` factors applied (``base`` itself without factors)."""
+    if not scenario.plant_factors:
+        return base
+    return dataclasses.replace(base, **{k: getattr(base, k) * f for k, f in scenario.plant_factors})
 
 
 def load_scenario(path: str | Path) -> Scenario:
@@ -355,6 +404,14 @@ class RunSummary:
     Every quantity's name ends with its unit (``_s``, ``_m``, ``_mps``, ``_deg``, ``_nm``
     (N m), ``_mps3`` (m/s³), ``_ms``); ``final_error_m`` is None for surveillance (no
     single goal).
+
+    The simulated robot passes through obstacles (the plant has no contact model), so a
+    run is judged on its footprint too: ``contact`` is true if the footprint overlapped
+    an obstacle or the map edge at some tick (``min_clearance_m`` < 0; the first such
+    time is ``contact_time_s``), and such a run never counts as ``reached_goal``.
+    ``stop_reason`` is what the hybrid controller reported (:class:`TaskStatus`
+    values); :attr:`outcome` is the verdict: ``contact`` for a run with contact,
+    ``stop_reason`` otherwise.
     """
 
     start: tuple[float, ...]
@@ -373,10 +430,28 @@ class RunSummary:
     min_clearance_m: float
     goals_reached: int
     tree_ms: float
+    contact: bool = False
+    contact_time_s: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.contact and self.reached_goal:
+            raise ValueError("a run with contact cannot have reached its goal")
+
+    @property
+    def outcome(self) -> str:
+        """``"contact"`` if the footprint touched an obstacle, else ``stop_reason``
+        (``goal_reached``, ``loops_completed``, ``no_policy``, ``timeout``,
+        ``no_progress``, ``fell``)."""
+        return "contact" if self.contact else self.stop_reason
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (strict JSON: a non-finite number becomes None)."""
-        return {k: _json_value(getattr(self, k)) for k in self.__dataclass_fields__}
+        """JSON-ready dict (strict JSON: a non-finite number becomes None): ``start``,
+        ``reached_goal``, ``outcome``, ``stop_reason``, ``contact``, ``contact_time_s``,
+        then the measures."""
+        head = ("start", "reached_goal", "outcome", "stop_reason", "contact", "contact_time_s")
+        values = {k: getattr(self, k) for k in head}
+        values.update({k: getattr(self, k) for k in self.__dataclass_fields__ if k not in head})
+        return {k: _json_value(v) for k, v in values.items()}
 
 
 def _json_value(v: Any) -> Any:
@@ -400,6 +475,8 @@ class ScenarioResult:
     library_seconds: float
     world_map: Any = field(repr=False)
     library: Any = field(repr=False)
+    plant_params: BallbotParams | None = None
+    """The simulated plant's parameters (None: the palette's)."""
 
 
 def run_scenario(
@@ -417,8 +494,10 @@ def run_scenario(
     palette : Palette, optional
         Default: the shipped palette.
     params : BallbotParams, optional
-        Physical parameters of the simulated robot (default: the palette's); the
-        controllers keep the palette's design, so different values test robustness.
+        Physical parameters of the simulated robot (default: the palette's), to which
+        the scenario's ``simulation.plant_params`` factors then apply (they scale these
+        parameters, not the palette's); the controllers keep the palette's design, so
+        different values test robustness.
         Each run starts where the controller believes the start is (encoder angles
         times its nominal ball radius); with another ``ball_radius`` the episode's
         position states (the plant's) differ from it by the ratio of the radii.
@@ -440,7 +519,7 @@ def run_scenario(
     from gracenav.world.occupancy import INLINE
 
     palette = palette if palette is not None else load_palette()
-    plant_params = params if params is not None else palette.params
+    plant_params = apply_plant_factors(scenario, params if params is not None else palette.params)
     try:
         world_map = load_map(scenario.map_source)
     except MapError as exc:
@@ -496,6 +575,7 @@ def run_scenario(
         library_seconds=lib_seconds,
         world_map=world_map,
         library=library,
+        plant_params=plant_params,
     )
 
 
@@ -532,9 +612,11 @@ def _summarise(
     goal = np.asarray(sc.goals[-1] if sc.kind == "point_to_point" else sc.goals[0])
     jumps = ep.graceful_torque_jumps()
     clearance = world_map.clearance(p[:, :2]) - sc.footprint_radius
+    touching = np.flatnonzero(clearance < 0.0)
+    contact = bool(touching.size)
     return RunSummary(
         start=tuple(float(v) for v in start),
-        reached_goal=bool(ep.reached_goal),
+        reached_goal=bool(ep.reached_goal) and not contact,
         stop_reason=ep.status.value,
         time_s=float(ep.time[-1]),
         path_length_m=ep.path_length,
@@ -551,6 +633,8 @@ def _summarise(
         min_clearance_m=float(np.min(clearance)),
         goals_reached=len(ep.goals_reached),
         tree_ms=1000.0 * float(np.median(ep.tree_seconds)) if ep.tree_seconds else 0.0,
+        contact=contact,
+        contact_time_s=float(ep.time[touching[0]]) if contact else None,
     )
 
 
@@ -562,6 +646,8 @@ def summary_dict(result: ScenarioResult) -> dict[str, Any]:
         "source": sc.source,
         "task": sc.kind,
         "plant": sc.plant,
+        "plant_param_factors": dict(sc.plant_factors),
+        "plant_params": None if result.plant_params is None else result.plant_params.to_dict(),
         "library_size": result.library_size,
         "graph_edges": result.graph_edges,
         "coverage": _json_value(result.coverage),

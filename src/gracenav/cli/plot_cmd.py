@@ -6,7 +6,14 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from gracenav.cli._common import check_figure_path, number, save_figure
+from gracenav.cli._common import (
+    add_palette_argument,
+    add_params_argument,
+    check_figure_path,
+    check_plant,
+    number,
+    save_figure,
+)
 from gracenav.errors import ConfigError
 
 __all__ = ["register"]
@@ -70,6 +77,27 @@ def register(sub: Any) -> None:
         help="coverage refinement limit (default 1)",
     )
     lb.set_defaults(func=run_library)
+    rc = s.add_parser(
+        "recovery",
+        help="disturbance recovery of one scenario run (paper Fig. 7 style)",
+        description="Run one start of SCENARIO (which must have a push or a drag under "
+        "'disturbances') and draw the map, the path, each push as an arrow from where it "
+        "acted (length proportional to the impulse, labelled in N s) and each drag as the "
+        "hand's displacement, the start domains of the policies executed from the "
+        "disturbance until the motion is graceful again, the outer domains D'(t) the state "
+        "left, and the hybrid controller's switches (graceful: dots, forced: crosses).",
+    )
+    rc.add_argument("scenario", type=Path, help="scenario YAML file")
+    rc.add_argument("--out", type=Path, required=True, help="output PNG file")
+    rc.add_argument(
+        "--run",
+        type=number(integer=True, minimum=1),
+        default=1,
+        help="which start of the scenario to run and draw (1-based, default 1)",
+    )
+    add_params_argument(rc)
+    add_palette_argument(rc)
+    rc.set_defaults(func=run_recovery)
 
 
 def run_primitives(args: argparse.Namespace) -> int:
@@ -125,4 +153,42 @@ def run_library(args: argparse.Namespace) -> int:
     )
     save_figure(out, lambda tmp: plot_library(lib, tmp, coverage=args.coverage))
     print(f"{len(lib)} library policies, coverage {100 * lib.coverage:.1f} %; wrote {out}")
+    return 0
+
+
+def run_recovery(args: argparse.Namespace) -> int:
+    """Run ``gracenav plot recovery``."""
+    import dataclasses
+
+    from gracenav.cli._common import load_params
+    from gracenav.palette import load_palette
+    from gracenav.plotting.recovery import plot_recovery
+    from gracenav.scenarios import load_scenario, run_scenario
+
+    out = check_figure_path(args.out)
+    sc = load_scenario(args.scenario)
+    if not sc.disturbances:
+        raise ConfigError(
+            f"{sc.source}: the scenario has no disturbances; a recovery figure needs a push "
+            "or a drag under 'disturbances'"
+        )
+    if args.run > len(sc.starts):
+        raise ConfigError(
+            f"--run {args.run}: {sc.source} has {len(sc.starts)} start(s); use --run 1"
+            + (f" to {len(sc.starts)}" if len(sc.starts) > 1 else "")
+        )
+    check_plant(sc.plant, f"{sc.source}: simulation.plant")
+    params = load_params(args)
+    palette = load_palette(args.palette)
+    one = dataclasses.replace(sc, starts=sc.starts[args.run - 1 : args.run])
+    result = run_scenario(one, palette=palette, params=params)
+    summary = result.runs[0]
+    try:
+        save_figure(out, lambda tmp: plot_recovery(result, tmp))
+    except ValueError as exc:  # no disturbance acted before the run ended
+        raise ConfigError(f"{sc.source}: {exc}") from None
+    print(
+        f"run {args.run}: {summary.outcome} at {summary.time_s:.2f} s, switches "
+        f"{summary.switches} ({summary.non_graceful_switches} forced); wrote {out}"
+    )
     return 0

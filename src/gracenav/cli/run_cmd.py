@@ -21,13 +21,19 @@ def register(sub: Any) -> None:
         description=(
             "Build the motion policy library on the scenario's map, plan single-goal trees "
             "and execute the task with the hybrid controller on the simulated robot. Writes "
-            "DIR/summary.json (per run: start, reached_goal, time_s, path_length_m, "
-            "final_error_m, max_lean_deg, max_torque_nm, max_jerk_mps3, switches, "
-            "non_graceful_switches, min_clearance_m, stop_reason), DIR/trajectory.csv, "
+            "DIR/summary.json (per run: start, reached_goal, outcome, stop_reason, contact, "
+            "contact_time_s, time_s, path_length_m, final_error_m, max_lean_deg, "
+            "max_torque_nm, max_jerk_mps3, switches, non_graceful_switches, "
+            "min_clearance_m, ...), DIR/trajectory.csv, "
             "DIR/events.csv (the switch log), DIR/paths.png, DIR/lean.png and "
             "DIR/animation.gif. The files are written together: DIR is replaced only when "
             "all are complete, and a second run into the same DIR is refused. A run whose "
-            "robot leans beyond 20° stops as fallen (stop_reason fell, exit status 1). "
+            "robot leans beyond 20° stops as fallen (stop_reason fell, exit status 1); a "
+            "run whose footprint touched an obstacle or the map edge (the simulated robot "
+            "passes through them) has outcome contact, does not count as reaching its goal "
+            "and the command exits with status 1. "
+            "The scenario's simulation.plant_params factors scale the simulated robot's "
+            "parameters (the --params file's if given). "
             "The scenario format is described in README.md."
         ),
     )
@@ -98,22 +104,40 @@ def _execute(
         f"{100 * result.coverage:.1f} %, built in {1000 * result.library_seconds:.0f} ms"
     )
     fell = []
+    contact = []
     for k, run in enumerate(result.runs):
-        state = "reached goal" if run.reached_goal else f"stopped ({run.stop_reason})"
+        if run.reached_goal:
+            state = f"reached goal in {run.time_s:.2f} s"
+        else:
+            state = f"stopped ({run.stop_reason}) at {run.time_s:.2f} s"
+        if run.contact:
+            state = f"touched an obstacle at t = {run.contact_time_s:.2f} s, {state}"
         err = "" if run.final_error_m is None else f", error {run.final_error_m * 1000:.1f} mm"
         start = ", ".join(f"{v:g}" for v in run.start[:2])
         print(
-            f"run {k + 1} from ({start}): {state} in {run.time_s:.2f} s{err}, "
+            f"run {k + 1} from ({start}): {state}{err}, "
             f"max lean {run.max_lean_deg:.2f}°, switches {run.switches} "
             f"({run.non_graceful_switches} non-graceful)"
         )
         if run.stop_reason == "fell":
             fell.append(f"run {k + 1} at t = {run.time_s:.2f} s")
+        if run.contact:
+            contact.append(
+                f"run {k + 1} at t = {run.contact_time_s:.2f} s "
+                f"(min clearance {1000 * run.min_clearance_m:.0f} mm)"
+            )
     print(f"wrote {', '.join(str(p) for p in written)}")
     if fell:
         print(
             f"gracenav: fell: the robot fell over (lean beyond {_fall_limit_deg():g}°) in "
             f"{'; '.join(fell)}",
+            file=sys.stderr,
+        )
+    if contact:
+        print(
+            "gracenav: contact: the robot's footprint touched an obstacle or the map edge "
+            f"in {'; '.join(contact)}; such a run does not count as reaching its goal "
+            "(outcome contact in summary.json)",
             file=sys.stderr,
         )
     return 0 if all(r.reached_goal for r in result.runs) else 1
