@@ -8,12 +8,19 @@ import numpy as np
 import pytest
 
 from gracenav import BallbotParams, ConfigError
+from gracenav.braking import braking_policies, braking_primitive
 from gracenav.errors import PlanningError
 from gracenav.execution import EventReason, HybridController, TaskStatus
 from gracenav.graph import build_graph, gracefully_prepares
 from gracenav.library import build_library
 from gracenav.palette import REGULATOR_NAME, load_palette
-from gracenav.policies import RegulatorOptions, push_lean_table, regulator_label
+from gracenav.policies import (
+    BrakingOptions,
+    RegulatorOptions,
+    domain_shape,
+    push_lean_table,
+    regulator_label,
+)
 from gracenav.simulate import (
     Push,
     Reference,
@@ -302,3 +309,61 @@ def test_balancing_mode_never_drives_toward_an_obstacle(box_room_controller) -> 
         surely = [c for c in nearest if min_clearance(c) >= need + half_cell]
         if surely:
             assert np.linalg.norm(q - here) <= np.linalg.norm(surely[0] - here) + 1e-9
+
+
+@pytest.fixture(scope="module")
+def braking_member(palette):
+    """The braking maneuver from 0.5 m/s along +x, verified with a small boundary set."""
+    opts = dataclasses.replace(
+        palette.options, braking=BrakingOptions(scales=(2.0,), boundary_points=16)
+    )
+    prim = braking_primitive(0.5, (1, 0), palette.d / 2, opts.braking, palette.gains)
+    assert prim is not None
+    shape = domain_shape(palette.gains, horizon=opts.shape_horizon)
+    (pol,) = braking_policies(prim, palette.gains, opts, shape)
+    return pol
+
+
+def test_braking_maneuver_stops_on_the_lattice_and_verifies(palette, braking_member) -> None:
+    pol = braking_member
+    prim = pol.primitive
+    assert pol.capture and pol.report.passed, pol.report
+    assert pol.report.runs == 2 * 16 * 5  # placements × points × lean variants
+    np.testing.assert_allclose(prim.start_velocity, [0.5, 0.0], atol=2e-3)
+    np.testing.assert_allclose(prim.position[0, :4], [0, 0, *prim.start_velocity], atol=1e-9)
+    # Ends at rest on a multiple of d/2 along its direction, upright.
+    end = prim.position[-1]
+    steps = end[0] / (palette.d / 2)
+    assert abs(steps - round(steps)) < 1e-9 and round(steps) >= 1 and abs(end[1]) < 1e-12
+    assert np.all(np.abs(end[2:]) < 1e-12) and np.all(np.abs(prim.states[-1, 2:]) < 1e-12)
+    # Planned lean within the maneuvers' limit; the flat output decelerates
+    # monotonically but the ball overshoots its rest point (to brake, the ball first
+    # runs ahead of the body to lean it back; 3.1 cm here).
+    assert np.max(np.abs(prim.states[:, 2:4])) <= np.deg2rad(4.5) + 1e-9
+    assert 0.0 < np.max(prim.position[:, 0]) - end[0] < 0.05
+    # D' floors: 0.32 m and 1.2 m/s, constant along the maneuver.
+    rp, rv = pol.outer_extents(np.array([0.0, pol.duration]))
+    np.testing.assert_allclose(rp, 0.32, rtol=1e-12)
+    np.testing.assert_allclose(rv, 1.2, rtol=1e-12)
+    # The closed loop from the reference's own start tracks it (an independent check of
+    # the plan's feasibility on the 3D model) and ends at rest at the end point.
+    res = simulate(prim.states[0], prim.reference(), pol.gains)
+    err = np.max(np.hypot(*(res.position_state[:, :2] - prim.position[:, :2]).T))
+    assert err < 0.01
+    assert np.hypot(*(res.position_state[-1, :2] - end[:2])) < 1e-3
+
+
+def test_braking_maneuver_in_the_library_hands_over_to_rest(palette, braking_member) -> None:
+    pal = dataclasses.replace(palette, policies=(*palette.policies, braking_member))
+    wm = load_map({"bounds": [[0.0, 0.0], [5.0, 5.0]], "resolution": 0.05})
+    lib = build_library(pal, wm, footprint_radius=0.2, max_halvings=1)
+    graph = build_graph(lib)
+    brake = np.flatnonzero(lib.palette_index == len(pal.policies) - 1)
+    assert brake.size > 0
+    assert set(lib.orientation[brake]) == {0, 1, 2, 3}  # not rotation invariant
+    _, dst = graph.edges()
+    assert not np.isin(brake, dst).any()
+    rest = set(lib.trim_indices().tolist())
+    for i in brake[:20]:
+        succ = graph.successors(int(i))
+        assert any(int(j) in rest for j in succ)

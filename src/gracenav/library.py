@@ -36,6 +36,7 @@ from functools import cached_property
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 from scipy import sparse
 
@@ -673,10 +674,26 @@ class PolicyLibrary:
         ndarray of bool, shape (M,)
         """
         p = _as_states(points)
-        covered = np.zeros(p.shape[0], dtype=bool)
-        q, _ = self._hits(p, any_only=True)
-        covered[q] = True
-        return covered
+        if p.shape[0] == 0 or len(self) == 0:
+            return np.zeros(p.shape[0], dtype=bool)
+        idx = self._start_index()
+        shapes = idx.class_shape
+        # Largest classes first: they settle the most queries early.
+        order = np.argsort(shapes[:, 0] - shapes[:, 1] ** 2 / shapes[:, 2]).astype(np.int64)
+        ny, nx = self.lattice_shape
+        out: BoolArray = _covered_kernel(
+            np.ascontiguousarray(p),
+            order,
+            np.ascontiguousarray(shapes),
+            np.ascontiguousarray(idx.class_velocity),
+            idx.keys,
+            nx,
+            ny,
+            float(self.spacing),
+            float(self.origin[0]),
+            float(self.origin[1]),
+        )
+        return out
 
     def start_domain_contains(self, points: ArrayLike) -> sparse.csr_matrix:
         """Which library policies' start domains S contain each position state.
@@ -704,6 +721,62 @@ class PolicyLibrary:
         cols = idx.order[np.repeat(idx.group_start[g], counts) + _ramp(counts)]
         data = np.ones(rows.size, dtype=bool)
         return sparse.csr_matrix((data, (rows, cols)), shape=(p.shape[0], len(self)))
+
+
+@njit(cache=True)
+def _covered_kernel(
+    points: FloatArray,
+    order: IntArray,
+    shapes: FloatArray,
+    velocity: FloatArray,
+    keys: IntArray,
+    nx: int,
+    ny: int,
+    s: float,
+    x0: float,
+    y0: float,
+) -> BoolArray:  # pragma: no cover - compiled
+    """Whether each point lies in some start domain: the test of
+    :meth:`PolicyLibrary._hits_chunk`, compiled, stopping at the first hit."""
+    m = points.shape[0]
+    out = np.zeros(m, dtype=np.bool_)
+    n_points = nx * ny
+    for q in range(m):
+        px, py, vx, vy = points[q, 0], points[q, 1], points[q, 2], points[q, 3]
+        for ci in order:
+            a, b, c = shapes[ci, 0], shapes[ci, 1], shapes[ci, 2]
+            schur = c - b * b / a
+            ux = vx - velocity[ci, 0]
+            uy = vy - velocity[ci, 1]
+            uu = ux * ux + uy * uy
+            if uu * schur > 1.0:
+                continue
+            r = math.sqrt(max(1.0 - uu * schur, 0.0) / a)
+            cx = px + (b / a) * ux
+            cy = py + (b / a) * uy
+            ix0 = max(math.ceil((cx - r - x0) / s - _LATTICE_EPS), 0)
+            ix1 = min(math.floor((cx + r - x0) / s + _LATTICE_EPS), nx - 1)
+            iy0 = max(math.ceil((cy - r - y0) / s - _LATTICE_EPS), 0)
+            iy1 = min(math.floor((cy + r - y0) / s + _LATTICE_EPS), ny - 1)
+            hit = False
+            for iy in range(iy0, iy1 + 1):
+                ey = py - (y0 + iy * s)
+                for ix in range(ix0, ix1 + 1):
+                    ex = px - (x0 + ix * s)
+                    value = a * (ex * ex + ey * ey) + 2.0 * b * (ex * ux + ey * uy) + c * uu
+                    if value > 1.0:
+                        continue
+                    key = ci * n_points + iy * nx + ix
+                    pos = np.searchsorted(keys, key)
+                    if pos < keys.size and keys[pos] == key:
+                        hit = True
+                        break
+                if hit:
+                    break
+            if hit:
+                out[q] = True
+                break
+    return out
 
 
 def _as_states(points: ArrayLike) -> FloatArray:
@@ -900,7 +973,12 @@ def _instantiate(
         undecided_q: list[IntArray] = []
         # A capture regulator is invariant under rotations (rest reference, round
         # domains in the plane): one orientation suffices.
-        placed = (types.start_radii[:, 0] == size) & ~(types.is_capture & (types.orientation > 0))
+        invariant = (
+            types.is_capture
+            & np.all(types.start_velocity == 0.0, axis=1)
+            & np.all(types.end_offset == 0.0, axis=1)
+        )
+        placed = (types.start_radii[:, 0] == size) & ~(invariant & (types.orientation > 0))
         for t in np.flatnonzero(placed):
             maybe = np.flatnonzero(
                 (c0 >= footprint + tables["sample_first_reach"][t]) & ~taken[types.scale_group[t]]

@@ -34,6 +34,7 @@ from gracenav.control import ControllerGains, LQRWeights, design_gains
 from gracenav.errors import CacheError, ConfigError
 from gracenav.params import BallbotParams
 from gracenav.policies import (
+    BrakingOptions,
     DomainRadii,
     DomainShape,
     MotionPolicy,
@@ -277,6 +278,8 @@ class Palette:
             opts["scale_ladder"] = tuple(opts["scale_ladder"])
             if opts.get("regulator") is not None:
                 opts["regulator"] = RegulatorOptions.from_dict(opts["regulator"])
+            if opts.get("braking") is not None:
+                opts["braking"] = BrakingOptions.from_dict(opts["braking"])
             options = VerificationOptions(**opts)
             primitive_options = PrimitiveSetOptions.from_dict(header["primitive_options"])
             primitives = []
@@ -589,6 +592,21 @@ def _regulators(
     return regulator_policies(prim, gains, options, goal, shape.correlation)
 
 
+def _braking_one(
+    args: tuple[float, tuple[int, int], float, ControllerGains, VerificationOptions, DomainShape],
+) -> tuple[MotionPolicy, ...]:
+    """One braking maneuver (see :mod:`gracenav.braking`), planned and verified at every
+    size; empty if no stopping distance is feasible."""
+    from gracenav.braking import braking_policies, braking_primitive
+
+    speed, direction, step, gains, options, shape = args
+    assert options.braking is not None
+    prim = braking_primitive(speed, direction, step, options.braking, gains)
+    if prim is None:
+        return ()
+    return braking_policies(prim, gains, options, shape)
+
+
 def _rotation_duplicate(prim: SampledPrimitive, earlier: Sequence[SampledPrimitive]) -> str | None:
     """Name of an earlier primitive of which ``prim`` is a 90°, 180° or 270° rotation."""
     for other in earlier:
@@ -657,8 +675,18 @@ def build_palette(
         else:
             duplicates.append((prim.name, dup))
     jobs = [(p, gains, options, shape) for p in unique]
+    brk = options.braking
+    brake_jobs = (
+        []
+        if brk is None
+        else [
+            (v, dirn, d / brk.lattice_divisions, gains, options, shape)
+            for v in brk.speeds
+            for dirn in brk.directions
+        ]
+    )
     results: list[MotionPolicy] = []
-    total = len(jobs) + (options.regulator is not None)
+    total = len(jobs) + len(brake_jobs) + (options.regulator is not None)
     with Progress(total, "verifying policies", enabled=progress) as bar:
         if processes <= 1:
             for job in jobs:
@@ -666,6 +694,9 @@ def build_palette(
                 bar.update()
             if options.regulator is not None:
                 results.extend(_regulators((gains, options, shape)))
+                bar.update()
+            for bjob in brake_jobs:
+                results.extend(_braking_one(bjob))
                 bar.update()
         else:
             import multiprocessing as mp
@@ -679,8 +710,12 @@ def build_palette(
                     if options.regulator is not None
                     else None
                 )
+                brakes = [pool.submit(_braking_one, bjob) for bjob in brake_jobs]
                 for sized in pool.map(_size_one, jobs):
                     results.extend(sized)
+                    bar.update()
+                for fut in brakes:
+                    results.extend(fut.result())
                     bar.update()
                 if regs is not None:
                     results.extend(regs.result())

@@ -38,9 +38,10 @@ from __future__ import annotations
 
 import enum
 import itertools
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -58,6 +59,7 @@ from gracenav.simulate import (
 )
 
 __all__ = [
+    "BrakingOptions",
     "DomainRadii",
     "DomainShape",
     "MotionPolicy",
@@ -452,6 +454,85 @@ class RegulatorOptions:
 
 
 @dataclass(frozen=True)
+class BrakingOptions:
+    """The palette's braking maneuvers (see :mod:`gracenav.braking`).
+
+    Parameters
+    ----------
+    speeds : tuple of float
+        Nominal initial speeds (m/s), ascending.
+    directions : tuple of (int, int)
+        Lattice directions (i, j) of the first quadrant; instantiation adds the other
+        three by rotation.
+    lattice_divisions : int
+        The stopping distance is a whole multiple of d / lattice_divisions along the
+        direction's lattice vector (so the rest point is an instantiation point once
+        the lattice is refined that far).
+    max_lean : float
+        Largest planned body tilt (rad).
+    min_duration, max_duration : float
+        Bounds of the deceleration time T (s).
+    tail : float
+        Rest held after the deceleration (s).
+    scales : tuple of float
+        Start domain sizes S/G, ascending; the palette keeps the largest that verifies.
+    outer_position_factor, outer_position_floor : float
+        D' position extent: max(factor e_p(S), floor) (m).
+    outer_velocity_factor, outer_velocity_floor : float
+        D' velocity extent: max(factor e_v(S), floor) (m/s). The error a push leaves
+        is mostly in velocity (a lean that settles); the velocity extent costs nothing
+        near obstacles, the position extent does.
+    boundary_points : int
+        Initial states on the surface of S per lean variant and placement.
+    """
+
+    speeds: tuple[float, ...] = (0.2, 0.35, 0.5, 0.65, 0.8)
+    directions: tuple[tuple[int, int], ...] = ((1, 0), (2, 1), (1, 1), (1, 2))
+    lattice_divisions: int = 2
+    max_lean: float = math.radians(4.5)
+    min_duration: float = 1.0
+    max_duration: float = 6.0
+    tail: float = 1.0
+    scales: tuple[float, ...] = (2.0, 3.0)
+    outer_position_factor: float = 1.1
+    outer_position_floor: float = 0.32
+    outer_velocity_factor: float = 3.0
+    outer_velocity_floor: float = 1.2
+    boundary_points: int = 64
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "speeds", tuple(float(v) for v in self.speeds))
+        object.__setattr__(self, "scales", tuple(float(v) for v in self.scales))
+        object.__setattr__(self, "directions", tuple((int(i), int(j)) for i, j in self.directions))
+        if not self.speeds or any(not v > 0 for v in self.speeds):
+            raise ConfigError(f"braking speeds must be positive, got {self.speeds}")
+        if any(i < 0 or j < 0 or i == j == 0 for i, j in self.directions):
+            raise ConfigError(
+                f"braking directions must be non-zero first-quadrant lattice vectors, got "
+                f"{self.directions}"
+            )
+        if not self.scales or any(s < 1 for s in self.scales):
+            raise ConfigError(f"braking scales must be >= 1 (S ⊇ G), got {self.scales}")
+        if self.lattice_divisions < 1:
+            raise ConfigError("braking lattice_divisions must be >= 1")
+        if not (0 < self.min_duration <= self.max_duration and self.tail > 0):
+            raise ConfigError("braking durations must be positive, min <= max")
+        if self.outer_position_factor < 1 or self.outer_velocity_factor < 1:
+            raise ConfigError("braking outer factors must be >= 1")
+        if self.boundary_points < 8:
+            raise ConfigError("braking boundary_points must be >= 8 (the axis extremes)")
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> BrakingOptions:
+        """Inverse of :func:`dataclasses.asdict` (lists become tuples)."""
+        out = dict(data)
+        out["speeds"] = tuple(out["speeds"])
+        out["scales"] = tuple(out["scales"])
+        out["directions"] = tuple(tuple(d) for d in out["directions"])
+        return cls(**out)
+
+
+@dataclass(frozen=True)
 class PushLeanTable:
     """Lean and lean rate a push leaves, tabulated by the ball speed it causes.
 
@@ -540,6 +621,9 @@ class VerificationOptions:
         large domains in open space, the bisected size near walls.
     regulator : RegulatorOptions or None
         The palette's capture regulators (None: none).
+    braking : BrakingOptions or None
+        The palette's braking maneuvers (None, the default: none; see
+        :mod:`gracenav.braking` for what they add and what they cost).
     """
 
     boundary_points: int = 64
@@ -552,10 +636,13 @@ class VerificationOptions:
     shape_horizon: float = 1.0
     scale_ladder: tuple[float, ...] = (3.0, 4.0, 6.0, 8.0)
     regulator: RegulatorOptions | None = field(default_factory=RegulatorOptions)
+    braking: BrakingOptions | None = None
 
     def __post_init__(self) -> None:
         if isinstance(self.regulator, dict):
             object.__setattr__(self, "regulator", RegulatorOptions.from_dict(self.regulator))
+        if isinstance(self.braking, dict):
+            object.__setattr__(self, "braking", BrakingOptions.from_dict(self.braking))
         ladder = tuple(float(v) for v in self.scale_ladder)
         object.__setattr__(self, "scale_ladder", ladder)
         if any(not b > a for a, b in zip((self.max_scale, *ladder), ladder, strict=False)):
