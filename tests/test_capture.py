@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -367,3 +368,28 @@ def test_braking_maneuver_in_the_library_hands_over_to_rest(palette, braking_mem
     for i in brake[:20]:
         succ = graph.successors(int(i))
         assert any(int(j) in rest for j in succ)
+
+
+def test_summary_reports_verified_recoveries_and_balancing_time() -> None:
+    """A push in the Fig. 5 scenario: the summary counts the recoveries into verified
+    start domains and the time spent in balancing mode, from the episode's events
+    and policy indices."""
+    import yaml
+
+    from gracenav.scenarios import parse_scenario, run_scenario
+
+    path = Path(__file__).resolve().parent.parent / "src/gracenav/data/scenarios"
+    data = yaml.safe_load((path / "fig5_point_to_point.yaml").read_text())
+    data["task"]["starts"] = [[0.0, 2.0, 0.0, 0.0]]
+    data["disturbances"] = [{"kind": "push", "time": 2.0, "impulse": [0.0, -15.0]}]
+    res = run_scenario(parse_scenario(data))
+    run, ep = res.runs[0], res.episodes[0]
+    forced = [
+        e for e in ep.events if e.reason in (EventReason.DOMAIN_EXIT, EventReason.NOT_IN_GOAL)
+    ]
+    assert run.verified_recoveries == sum(1 for e in forced if e.to_policy >= 0)
+    assert run.balancing_s >= 1.0  # this push leaves the robot in no start domain
+    dt = np.diff(ep.time)
+    assert run.balancing_s == pytest.approx(float(np.sum(dt[ep.policy[:-1] == -1])), abs=1e-12)
+    d = run.to_dict()
+    assert d["verified_recoveries"] == run.verified_recoveries and "balancing_s" in d

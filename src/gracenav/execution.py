@@ -234,6 +234,21 @@ class Episode:
             1 for e in self.events if e.reason is not EventReason.START and not e.reason.graceful
         )
 
+    @property
+    def verified_recoveries(self) -> int:
+        """Switches after a domain exit (or an end outside G) straight into a policy
+        whose start domain contains the state: recoveries the method guarantees."""
+        forced = (EventReason.DOMAIN_EXIT, EventReason.NOT_IN_GOAL)
+        return sum(1 for e in self.events if e.reason in forced and e.to_policy >= 0)
+
+    @property
+    def balancing_time(self) -> float:
+        """Time (s) spent in balancing mode, the unverified last resort."""
+        if self.time.size < 2:
+            return 0.0
+        dt = np.diff(self.time)
+        return float(np.sum(dt[self.policy[:-1] == -1]))
+
     def graceful_torque_jumps(self) -> FloatArray:
         """|Δτ| (N m) between the last tick of a policy and the first of its graceful
         successor, one per graceful switch."""

@@ -411,7 +411,9 @@ class RunSummary:
     time is ``contact_time_s``), and such a run never counts as ``reached_goal``.
     ``stop_reason`` is what the hybrid controller reported (:class:`TaskStatus`
     values); :attr:`outcome` is the verdict: ``contact`` for a run with contact,
-    ``stop_reason`` otherwise.
+    ``stop_reason`` otherwise. ``verified_recoveries`` counts switches after a domain
+    exit straight into a policy whose start domain contains the state;
+    ``balancing_s`` is the time spent in balancing mode, the unverified last resort.
     """
 
     start: tuple[float, ...]
@@ -432,6 +434,8 @@ class RunSummary:
     tree_ms: float
     contact: bool = False
     contact_time_s: float | None = None
+    verified_recoveries: int = 0
+    balancing_s: float = 0.0
 
     def __post_init__(self) -> None:
         if self.contact and self.reached_goal:
@@ -635,6 +639,8 @@ def _summarise(
         tree_ms=1000.0 * float(np.median(ep.tree_seconds)) if ep.tree_seconds else 0.0,
         contact=contact,
         contact_time_s=float(ep.time[touching[0]]) if contact else None,
+        verified_recoveries=ep.verified_recoveries,
+        balancing_s=ep.balancing_time,
     )
 
 
