@@ -529,8 +529,13 @@ def run_scenario(
     except MapError as exc:
         if not isinstance(scenario.map_source, dict):
             raise
-        # An inline map: name the scenario file and its key.
-        where = str(exc).replace(INLINE, "'map'", 1)
+        # An inline map: name the scenario file and the key path under 'map'.
+        msg = str(exc)
+        head = f"{INLINE}: '"
+        if msg.startswith(head):
+            where = "'map." + msg[len(head) :]
+        else:
+            where = msg.replace(INLINE, "'map'", 1)
         raise MapError(f"{scenario.source}: {where}") from None
     check_scenario(scenario, world_map, palette)
     t0 = time.perf_counter()
