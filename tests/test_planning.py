@@ -1,6 +1,9 @@
-"""The single-goal optimal tree: against an independent Bellman-Ford and a reference
-Dijkstra, and identical to the search on a per-call transposed CSR (the tree as it was
-computed before the reversed graph was kept with the graph)."""
+"""The single-goal optimal tree: costs against an independent Bellman-Ford, a reference
+heap Dijkstra and scipy's Dijkstra on a per-call transposed CSR (the tree as it was
+computed before the compiled search), bit for bit; next policies against a brute-force
+evaluation of the documented choice among equally good successors. Both compiled
+searches (one FIFO queue per distinct cost, and the binary heap it falls back to) are
+covered, and each test checks which one ran."""
 
 from __future__ import annotations
 
@@ -13,10 +16,19 @@ import scipy.sparse
 from scipy.sparse import csgraph
 from synthetic import palette, policy, primitive
 
-from gracenav import PlanningError
+from gracenav import ConfigError, PlanningError
 from gracenav.graph import build_graph
 from gracenav.library import build_library
-from gracenav.planning import CostCriterion, PolicyTree, plan_tree
+from gracenav.planning import (
+    _DONE,
+    _REVISITED,
+    _TOO_MANY_COSTS,
+    CostCriterion,
+    PolicyTree,
+    _search_heap,
+    _search_queues,
+    plan_tree,
+)
 from gracenav.policies import PrimitiveKind
 from gracenav.world import load_map
 
@@ -24,13 +36,17 @@ X, Y, Z = (0.5, 0.0), (0.0, 0.5), (0.0, 0.0)
 
 
 def random_graph(
-    n: int, p: float, seed: int, *, zero_fraction: float = 0.0
+    n: int, p: float, seed: int, *, zero_fraction: float = 0.0, levels: int = 0
 ) -> tuple[scipy.sparse.csr_matrix, np.ndarray]:
     """Edges i → j weighted by the cost of executing i; ``zero_fraction`` of the nodes
-    cost nothing (as rest trims under the distance criterion), stored as explicit zeros.
-    The last node is a dead end: no goal but itself is reachable from it."""
+    cost nothing (as rest trims under the distance criterion), stored as explicit zeros;
+    ``levels`` > 0 draws the costs from that many values (as a palette's few durations:
+    many equally good paths). The last node is a dead end: no goal but itself is
+    reachable from it."""
     rng = np.random.default_rng(seed)
     cost = rng.uniform(0.5, 3.0, n)  # the cost of executing each policy
+    if levels:
+        cost = rng.choice(np.arange(1, levels + 1) * 0.375, n)
     cost[rng.random(n) < zero_fraction] = 0.0
     mask = rng.random((n, n)) < p
     np.fill_diagonal(mask, False)
@@ -50,6 +66,40 @@ def transposing_tree(adj: scipy.sparse.csr_matrix, goal: int) -> tuple[np.ndarra
     nxt = np.asarray(pred, dtype=np.int64)
     nxt[nxt < 0] = -1
     return dist, nxt
+
+
+def searched_by(adj: scipy.sparse.spmatrix, goal: int) -> int:
+    """Status of the FIFO-queue search on ``adj``: ``_DONE`` if it gave the tree, else
+    why :func:`plan_tree` fell back to the heap search."""
+    csc = scipy.sparse.csc_matrix(adj)
+    n = csc.shape[0]
+    dist, nxt = np.empty(n), np.empty(n, dtype=np.int64)
+    return int(_search_queues(csc.indptr, csc.indices, csc.data, goal, dist, nxt))
+
+
+def heap_search(adj: scipy.sparse.spmatrix, goal: int) -> tuple[np.ndarray, np.ndarray]:
+    """Cost-to-go and next policy by the binary-heap search alone."""
+    csc = scipy.sparse.csc_matrix(adj)
+    n = csc.shape[0]
+    dist, nxt = np.empty(n), np.empty(n, dtype=np.int64)
+    assert _search_heap(csc.indptr, csc.indices, csc.data, goal, dist, nxt) == _DONE
+    return dist, nxt
+
+
+def documented_next(adj: scipy.sparse.csr_matrix, goal: int, dist: np.ndarray) -> np.ndarray:
+    """The next policy the module notes define, by brute force over each policy's
+    successors: among those j with cost(i → j) + dist[j] == dist[i] exactly, the one
+    with the smallest dist[j], then the smallest index (positive costs)."""
+    adj = scipy.sparse.csr_matrix(adj)
+    nxt = np.full(adj.shape[0], -1, dtype=np.int64)
+    for i in range(adj.shape[0]):
+        if i == goal or not np.isfinite(dist[i]):
+            continue
+        row = slice(adj.indptr[i], adj.indptr[i + 1])
+        succ, w = adj.indices[row], adj.data[row]
+        attain = succ[w + dist[succ] == dist[i]]
+        nxt[i] = min(attain.tolist(), key=lambda j: (dist[j], j))
+    return nxt
 
 
 def bellman_ford_to(goal: int, adj: scipy.sparse.csr_matrix) -> np.ndarray:
@@ -122,18 +172,83 @@ def test_cost_to_go_matches_bellman_ford(seed: int) -> None:
 
 
 @pytest.mark.parametrize("seed", range(6))
-@pytest.mark.parametrize("zero_fraction", [0.0, 0.3])
-def test_csc_and_csr_give_the_transposing_tree(seed: int, zero_fraction: float) -> None:
-    adj, _ = random_graph(80, 0.05, seed, zero_fraction=zero_fraction)
+@pytest.mark.parametrize("levels", [0, 3])
+def test_positive_costs_give_scipys_costs_and_the_documented_next_policy(
+    seed: int, levels: int
+) -> None:
+    adj, _ = random_graph(80, 0.05, seed, levels=levels)
     csc = adj.tocsc()
+    ties = 0
     for goal in (0, 13, 79):
-        dist, nxt = transposing_tree(adj, goal)
+        dist, old_nxt = transposing_tree(adj, goal)
+        want = documented_next(adj, goal, dist)
+        ties += int(np.sum(want != old_nxt))
+        assert searched_by(adj, goal) == _DONE  # the FIFO-queue search
         for form in (adj, csc, scipy.sparse.csr_array(adj), scipy.sparse.csc_array(csc)):
             tree = plan_tree(form, goal)
             np.testing.assert_array_equal(tree.cost_to_go, dist)
-            np.testing.assert_array_equal(tree.next_policy, nxt)
+            np.testing.assert_array_equal(tree.next_policy, want)
             assert tree.next_policy.dtype == np.int64
+        heap_dist, heap_nxt = heap_search(adj, goal)
+        np.testing.assert_array_equal(heap_dist, dist)
+        np.testing.assert_array_equal(heap_nxt, want)
         assert_optimal_tree(plan_tree(csc, goal), adj, bellman_ford_to(goal, adj))
+    if levels:
+        assert ties > 0  # equally good successors met, chosen by the rule, not by scipy
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_zero_costs_give_scipys_costs_and_an_optimal_acyclic_tree(seed: int) -> None:
+    adj, _ = random_graph(80, 0.05, seed, zero_fraction=0.3, levels=3)
+    for goal in (0, 13, 79):
+        dist, _ = transposing_tree(adj, goal)
+        assert searched_by(adj, goal) == _DONE
+        tree = plan_tree(adj.tocsc(), goal)
+        np.testing.assert_array_equal(tree.cost_to_go, dist)
+        assert_optimal_tree(tree, adj, bellman_ford_to(goal, adj))
+        heap_dist, heap_nxt = heap_search(adj, goal)
+        np.testing.assert_array_equal(heap_dist, dist)
+        assert_optimal_tree(
+            PolicyTree(goal, heap_nxt, heap_dist, CostCriterion.TIME),
+            adj,
+            bellman_ford_to(goal, adj),
+        )
+        for i in np.flatnonzero(np.isfinite(dist)):
+            assert tree.path_from(int(i))[-1] == goal  # no cycle
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_fallback_to_the_heap_search(seed: int) -> None:
+    """Edge costs that are not their source's cost (a policy reached again at a lower
+    cost) and more distinct costs than queues: the heap search gives the tree."""
+    rng = np.random.default_rng(seed)
+    n = 300
+    mask = rng.random((n, n)) < 0.03
+    np.fill_diagonal(mask, False)
+    i, j = np.nonzero(mask)
+    per_edge = scipy.sparse.csr_matrix(
+        (rng.choice([0.5, 1.0, 1.5, 2.0], i.size), (i, j)), shape=(n, n)
+    )
+    per_node = scipy.sparse.csr_matrix((rng.uniform(0.5, 3.0, n)[i], (i, j)), shape=(n, n))
+    assert np.unique(per_node.data).size > 256  # more distinct costs than queues
+    for adj, why in ((per_edge, _REVISITED), (per_node, _TOO_MANY_COSTS)):
+        assert searched_by(adj, 0) == why
+        dist, _ = transposing_tree(adj, 0)
+        assert np.isfinite(dist).sum() > n // 2
+        tree = plan_tree(adj.tocsc(), 0)
+        np.testing.assert_array_equal(tree.cost_to_go, dist)
+        np.testing.assert_array_equal(tree.next_policy, documented_next(adj, 0, dist))
+        assert_optimal_tree(tree, adj, bellman_ford_to(0, adj))
+
+
+def test_negative_or_nan_costs_refused() -> None:
+    for bad in (-1.0, np.nan):
+        adj = scipy.sparse.csr_matrix(([1.0, bad, 1.0], ([0, 1, 2], [1, 2, 0])), shape=(3, 3))
+        with pytest.raises(ConfigError, match="negative or NaN edge cost"):
+            plan_tree(adj, 0)
+        csc = adj.tocsc()
+        dist, nxt = np.empty(3), np.empty(3, dtype=np.int64)
+        assert _search_heap(csc.indptr, csc.indices, csc.data, 0, dist, nxt) != _DONE
 
 
 def test_csc_input_is_not_copied() -> None:
@@ -167,7 +282,7 @@ def small_library_graph():  # type: ignore[no-untyped-def]
     return lib, build_graph(lib)
 
 
-def test_library_trees_equal_the_transposing_tree_and_a_reference_dijkstra() -> None:
+def test_library_trees_have_the_transposing_trees_costs_and_the_documented_next() -> None:
     lib, graph = small_library_graph()
     assert len(lib) > 300 and graph.num_edges > 2000
     trims = lib.trim_indices()
@@ -178,9 +293,11 @@ def test_library_trees_equal_the_transposing_tree_and_a_reference_dijkstra() -> 
         for goal in rng.choice(trims, 6, replace=False):
             goal = int(goal)
             tree = plan_tree(graph.csc(cost), goal, criterion=cost)
-            dist, nxt = transposing_tree(fwd, goal)
+            assert searched_by(graph.csc(cost), goal) == _DONE
+            dist, _ = transposing_tree(fwd, goal)
             np.testing.assert_array_equal(tree.cost_to_go, dist)
-            np.testing.assert_array_equal(tree.next_policy, nxt)
+            if cost == "time":  # positive costs: the documented choice, exactly
+                np.testing.assert_array_equal(tree.next_policy, documented_next(fwd, goal, dist))
             assert_optimal_tree(tree, fwd, heap_dijkstra_to(goal, fwd))
             reached += int(np.isfinite(dist).sum())
     assert reached > 12 * 50  # the trees are not trivial
