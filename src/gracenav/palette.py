@@ -282,23 +282,27 @@ class Palette:
                 opts["braking"] = BrakingOptions.from_dict(opts["braking"])
             options = VerificationOptions(**opts)
             primitive_options = PrimitiveSetOptions.from_dict(header["primitive_options"])
-            primitives = []
-            for i, meta in enumerate(header["primitives"]):
-                prim = SampledPrimitive.from_coarse(
+            items = [
+                (
                     arrays[f"p{i}_states"],
                     arrays[f"p{i}_accelerations"],
                     int(meta["stride"]),
-                    name=meta["name"],
-                    kind=PrimitiveKind(meta["kind"]),
-                    dt=float(meta["dt"]),
-                    displacement=np.asarray(meta["displacement"], dtype=float),
-                    start_velocity=np.asarray(meta["start_velocity"], dtype=float),
-                    end_velocity=np.asarray(meta["end_velocity"], dtype=float),
-                    params=params,
+                    {
+                        "name": meta["name"],
+                        "kind": PrimitiveKind(meta["kind"]),
+                        "dt": float(meta["dt"]),
+                        "displacement": np.asarray(meta["displacement"], dtype=float),
+                        "start_velocity": np.asarray(meta["start_velocity"], dtype=float),
+                        "end_velocity": np.asarray(meta["end_velocity"], dtype=float),
+                    },
                 )
+                for i, meta in enumerate(header["primitives"])
+            ]
+            # One interpolation and one evaluation of the equations of motion for all.
+            primitives = SampledPrimitive.from_coarse_many(items, params)
+            for prim, meta in zip(primitives, header["primitives"], strict=True):
                 if abs(prim.duration - float(meta["duration"])) > 1e-9:
                     raise ValueError(f"primitive {meta['name']}: samples do not span its duration")
-                primitives.append(prim)
             policies = []
             for meta in header["policies"]:
                 rep = meta["report"]

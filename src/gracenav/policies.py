@@ -273,30 +273,73 @@ class SampledPrimitive:
         q, q̇ and q̈ between stored ticks come from the quintic Hermite interpolant
         of (q, q̇, q̈) at both ends (error ~h⁶ q⁽⁶⁾, below 1e-10 rad for these smooth
         trajectories); the torques are recomputed from the 3D equations of motion so
-        the rebuilt samples satisfy them.
+        the rebuilt samples satisfy them. See :meth:`from_coarse_many`.
+        """
+        meta = {
+            "name": name,
+            "kind": kind,
+            "dt": dt,
+            "displacement": displacement,
+            "start_velocity": start_velocity,
+            "end_velocity": end_velocity,
+        }
+        (out,) = cls.from_coarse_many([(states, accelerations, stride, meta)], params)
+        return out
+
+    @classmethod
+    def from_coarse_many(
+        cls,
+        items: Sequence[tuple[FloatArray, FloatArray, int, dict[str, Any]]],
+        params: BallbotParams,
+    ) -> list[SampledPrimitive]:
+        """:meth:`from_coarse` for many primitives at once (one interpolation per
+        stride and one evaluation of the equations of motion for all samples).
+
+        ``items``: (states, accelerations, stride, meta) with ``meta`` holding the
+        keyword arguments name, kind, dt, displacement, start_velocity, end_velocity.
         """
         from gracenav.model.ballbot3d import Ballbot3D
 
-        h = stride * dt
-        m = states.shape[0] - 1
-        s = np.arange(stride) / stride
-        basis = _quintic_hermite(s)  # (3, stride, 6): value, d/ds, d²/ds²
-        q0, q1 = states[:-1, :4], states[1:, :4]
-        v0, v1 = states[:-1, 4:], states[1:, 4:]
-        a0, a1 = accelerations[:-1], accelerations[1:]
-        coef = np.concatenate([q0, h * v0, h * h * a0, q1, h * v1, h * h * a1], axis=1)
-        coef = coef.reshape(m, 6, 4).transpose(1, 0, 2).reshape(6, m * 4)
+        pieces: list[tuple[FloatArray, FloatArray, FloatArray]] = [
+            (np.zeros((0, 4)), np.zeros((0, 4)), np.zeros((0, 4)))
+        ] * len(items)
+        by_step: dict[tuple[int, float], list[int]] = {}
+        for k, (_, _, stride, meta) in enumerate(items):
+            by_step.setdefault((int(stride), float(meta["dt"])), []).append(k)
+        for (stride, dt), ks in by_step.items():
+            h = stride * dt
+            basis = _quintic_hermite(np.arange(stride) / stride)  # (3, stride, 6)
+            coefs, counts = [], []
+            for k in ks:
+                st, acc = items[k][0], items[k][1]
+                q0, q1 = st[:-1, :4], st[1:, :4]
+                v0, v1 = st[:-1, 4:], st[1:, 4:]
+                a0, a1 = acc[:-1], acc[1:]
+                coefs.append(np.concatenate([q0, h * v0, h * h * a0, q1, h * v1, h * h * a1], 1))
+                counts.append(st.shape[0] - 1)
+            m = int(sum(counts))
+            coef = np.concatenate(coefs).reshape(m, 6, 4).transpose(1, 0, 2).reshape(6, m * 4)
 
-        def interpolate(b: FloatArray) -> FloatArray:
-            out: FloatArray = (b @ coef).reshape(stride, m, 4).transpose(1, 0, 2)
-            return out.reshape(m * stride, 4)
+            def interpolate(b: FloatArray, coef: FloatArray = coef, m: int = m) -> FloatArray:
+                out: FloatArray = (b @ coef).reshape(b.shape[0], m, 4).transpose(1, 0, 2)
+                return out.reshape(m * b.shape[0], 4)
 
-        q = interpolate(basis[0])
-        qd = interpolate(basis[1]) / h
-        qdd = interpolate(basis[2]) / (h * h)
-        q = np.concatenate([q, states[-1:, :4]])
-        qd = np.concatenate([qd, states[-1:, 4:]])
-        qdd = np.concatenate([qdd, accelerations[-1:]])
+            q_all = interpolate(basis[0])
+            qd_all = interpolate(basis[1]) / h
+            qdd_all = interpolate(basis[2]) / (h * h)
+            start = 0
+            for k, n in zip(ks, counts, strict=True):
+                st, acc = items[k][0], items[k][1]
+                sl = slice(start * stride, (start + n) * stride)
+                pieces[k] = (
+                    np.concatenate([q_all[sl], st[-1:, :4]]),
+                    np.concatenate([qd_all[sl], st[-1:, 4:]]),
+                    np.concatenate([qdd_all[sl], acc[-1:]]),
+                )
+                start += n
+        q = np.concatenate([p[0] for p in pieces])
+        qd = np.concatenate([p[1] for p in pieces])
+        qdd = np.concatenate([p[2] for p in pieces])
         model = Ballbot3D(params)
         mm = model.mass_matrix(q)
         tau = (mm[:, :2, :] * qdd[:, None, :]).sum(axis=2)
@@ -305,19 +348,23 @@ class SampledPrimitive:
         position = r * np.concatenate(
             [q[:, :2] + q[:, 2:], qd[:, :2] + qd[:, 2:], qdd[:, :2] + qdd[:, 2:]], axis=1
         )
-        return cls(
-            name=name,
-            kind=kind,
-            duration=m * stride * dt,
-            dt=dt,
-            displacement=displacement,
-            start_velocity=start_velocity,
-            end_velocity=end_velocity,
-            states=np.ascontiguousarray(np.concatenate([q, qd], axis=1)),
-            accelerations=np.ascontiguousarray(qdd),
-            inputs=np.ascontiguousarray(tau),
-            position=np.ascontiguousarray(position),
-        )
+        out = []
+        start = 0
+        for k, (_, _, _, meta) in enumerate(items):
+            n = pieces[k][0].shape[0]
+            sl = slice(start, start + n)
+            start += n
+            out.append(
+                cls(
+                    duration=(n - 1) * float(meta["dt"]),
+                    states=np.ascontiguousarray(np.concatenate([q[sl], qd[sl]], axis=1)),
+                    accelerations=np.ascontiguousarray(qdd[sl]),
+                    inputs=np.ascontiguousarray(tau[sl]),
+                    position=np.ascontiguousarray(position[sl]),
+                    **meta,
+                )
+            )
+        return out
 
     def position_state(self, t: ArrayLike) -> FloatArray:
         """Reference position state (x, y, ẋ, ẏ) at times ``t`` (s), linear between ticks
