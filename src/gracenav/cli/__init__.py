@@ -1,9 +1,10 @@
 """The ``gracenav`` command line: a thin layer over the library.
 
 Every error a user can cause is printed as one line, ``gracenav: error: ...``, and the
-command exits with status 2 (status 1 for a fall of the simulated robot or a failure of
-the machine, such as a full disk). Inputs are checked before any heavy work; progress
-bars appear on a terminal only, on their own line.
+command exits with status 2 (status 1 for a fall of the simulated robot, a run whose
+footprint touched an obstacle, or a failure of the machine, such as a full disk). Inputs
+are checked before any heavy work; progress bars appear on a terminal only, on their own
+line.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """Build the argument parser with all sub-commands."""
-    from gracenav.cli import palette_cmd, plot_cmd, run_cmd, simulate_cmd
+    from gracenav.cli import campaign_cmd, palette_cmd, plot_cmd, run_cmd, simulate_cmd
 
     parser = _Parser(
         prog="gracenav",
@@ -47,6 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
     simulate_cmd.register(sub)
     palette_cmd.register(sub)
     plot_cmd.register(sub)
+    campaign_cmd.register(sub)
     return parser
 
 
