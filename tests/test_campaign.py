@@ -130,3 +130,17 @@ def test_command_line(tmp_path, capsys) -> None:
     status = main(["campaign", str(path), "--out", str(tmp_path / "q"), "--processes", "0"])
     err = capsys.readouterr().err
     assert status == 2 and err.startswith("gracenav: error:") and err.count("\n") == 1
+
+
+def test_params_apply_to_every_trial_and_a_resume_needs_the_same(tmp_path, capsys) -> None:
+    path = write_campaign(tmp_path, trials=1)
+    heavy = tmp_path / "p.yaml"
+    heavy.write_text("body_mass: 60.0\n")
+    out = tmp_path / "o"
+    assert main(["campaign", str(path), "--out", str(out), "--params", str(heavy)]) == 0
+    head = json.loads((out / "trials.jsonl").read_text().splitlines()[0])
+    assert head["params"]["body_mass"] == 60.0
+    capsys.readouterr()
+    status = main(["campaign", str(path), "--out", str(out), "--processes", "1"])
+    err = capsys.readouterr().err
+    assert status == 2 and "other robot parameters" in err and err.count("\n") == 1

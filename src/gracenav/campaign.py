@@ -249,8 +249,10 @@ def _trial_document(spec: CampaignSpec, inputs: dict[str, Any]) -> dict[str, Any
     return doc
 
 
-def run_trial(spec: CampaignSpec, trial: int) -> dict[str, Any]:
-    """Run trial ``trial`` and return its record (inputs and outcome)."""
+def run_trial(spec: CampaignSpec, trial: int, params: Any = None) -> dict[str, Any]:
+    """Run trial ``trial`` and return its record (inputs and outcome); ``params``: the
+    simulated robot's parameters (:class:`BallbotParams`, default the palette's), which
+    the trial's plant factors scale."""
     from gracenav.scenarios import parse_scenario, run_scenario
 
     inputs = draw_trial(spec, trial)
@@ -259,7 +261,7 @@ def run_trial(spec: CampaignSpec, trial: int) -> dict[str, Any]:
         source=f"{spec.source} trial {trial}",
         base=spec.scenario_dir,
     )
-    run = run_scenario(sc).runs[0].to_dict()
+    run = run_scenario(sc, params=params).runs[0].to_dict()
     keep = (
         "reached_goal",
         "outcome",
@@ -346,7 +348,7 @@ def _csv(records: list[dict[str, Any]]) -> str:
     return buf.getvalue()
 
 
-def _read_done(path: Path, spec: CampaignSpec) -> dict[int, dict[str, Any]]:
+def _read_done(path: Path, spec: CampaignSpec, params: Any) -> dict[int, dict[str, Any]]:
     """Trials already in ``DIR/trials.jsonl`` (a torn last line is ignored)."""
     done: dict[int, dict[str, Any]] = {}
     if not path.exists():
@@ -367,9 +369,18 @@ def _read_done(path: Path, spec: CampaignSpec) -> dict[int, dict[str, Any]]:
                     f"{path.parent}: holds trials of another campaign (or another version "
                     "of this one); use another --out or remove it"
                 )
+            if rec.get("params") != _params_dict(params):
+                raise OutputError(
+                    f"{path.parent}: its trials were run with other robot parameters "
+                    "(--params); use the same file, another --out, or remove it"
+                )
             continue
         done[int(rec["trial"])] = rec
     return done
+
+
+def _params_dict(params: Any) -> dict[str, Any] | None:
+    return None if params is None else dict(params.to_dict())
 
 
 def _append(fh: Any, record: dict[str, Any]) -> None:
@@ -382,7 +393,7 @@ def _init_worker() -> None:
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 
-def _run_one(args: tuple[CampaignSpec, int]) -> dict[str, Any]:
+def _run_one(args: tuple[CampaignSpec, int, Any]) -> dict[str, Any]:
     return run_trial(*args)
 
 
@@ -391,6 +402,7 @@ def run_campaign(
     out: str | Path,
     *,
     processes: int | None = None,
+    params: Any = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> list[dict[str, Any]]:
     """Run (or resume) a campaign into ``out``; returns every trial's record in order.
@@ -402,6 +414,8 @@ def run_campaign(
         The campaign's directory: ``trials.jsonl``, ``results.csv``, ``summary.json``.
     processes : int, optional
         Worker processes (default: the machine's cores); 1 runs in this process.
+    params : BallbotParams, optional
+        The simulated robot (default: the palette's); resuming needs the same.
     progress : callable(done, total), optional
         Called after each trial.
 
@@ -429,17 +443,18 @@ def run_campaign(
     try:
         os.close(fd)
         trials_path = out / "trials.jsonl"
-        done = _read_done(trials_path, spec)
+        done = _read_done(trials_path, spec, params)
         todo = [i for i in range(spec.trials) if i not in done]
         with trials_path.open("a", encoding="utf-8") as fh:
             if not trials_path.stat().st_size:
-                _append(fh, {"key": spec.key, "format": CAMPAIGN_FORMAT, "campaign": spec.name})
+                head = {"key": spec.key, "format": CAMPAIGN_FORMAT, "campaign": spec.name}
+                _append(fh, {**head, "params": _params_dict(params)})
             n_done = spec.trials - len(todo)
             if progress is not None:
                 progress(n_done, spec.trials)
             procs = processes if processes is not None else (os.cpu_count() or 1)
             if procs <= 1 or len(todo) <= 1:
-                results = (run_trial(spec, i) for i in todo)
+                results = (run_trial(spec, i, params) for i in todo)
                 for rec in results:
                     done[rec["trial"]] = rec
                     _append(fh, rec)
@@ -452,7 +467,7 @@ def run_campaign(
 
                 ctx = mp.get_context("spawn")
                 with ProcessPoolExecutor(procs, mp_context=ctx, initializer=_init_worker) as pool:
-                    for rec in pool.map(_run_one, [(spec, i) for i in todo]):
+                    for rec in pool.map(_run_one, [(spec, i, params) for i in todo]):
                         done[rec["trial"]] = rec
                         _append(fh, rec)
                         n_done += 1

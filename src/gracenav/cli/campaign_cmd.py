@@ -7,6 +7,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from gracenav.cli._common import add_params_argument, load_params
+
 __all__ = ["register"]
 
 
@@ -35,6 +37,7 @@ def register(sub: Any) -> None:
         default=None,
         help="worker processes (default: the machine's cores; 1 runs in this process)",
     )
+    add_params_argument(c)
     c.set_defaults(func=run_campaign_cmd)
 
 
@@ -47,12 +50,15 @@ def run_campaign_cmd(args: argparse.Namespace) -> int:
     if args.processes is not None and not 1 <= args.processes <= 256:
         raise ConfigError(f"--processes must be an integer in [1, 256], got {args.processes}")
     spec = load_campaign(args.campaign)
+    params = load_params(args)
     with Progress(spec.trials, f"campaign {spec.name}") as bar:
 
         def progress(done: int, total: int) -> None:
             bar.update(done - bar.count)
 
-        records = run_campaign(spec, args.out, processes=args.processes, progress=progress)
+        records = run_campaign(
+            spec, args.out, processes=args.processes, params=params, progress=progress
+        )
     ok = sum(1 for r in records if r["reached_goal"])
     print(
         f"{spec.name}: {ok} of {len(records)} trials reached the goal; wrote "
