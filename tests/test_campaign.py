@@ -78,6 +78,13 @@ def test_a_campaign_reproduces_and_resumes_exactly(tmp_path) -> None:
     )
     assert calls[0] == (1, 3) and calls[-1] == (3, 3)
     assert resumed == full
+    # The cut line was dropped, so the file reads back whole: a third run does nothing.
+    again: list[tuple[int, int]] = []
+    assert (
+        run_campaign(spec, tmp_path / "b", processes=1, progress=lambda d, t: again.append((d, t)))
+        == full
+    )
+    assert again == [(3, 3)]
     assert (tmp_path / "a" / "results.csv").read_text() == (
         tmp_path / "b" / "results.csv"
     ).read_text()

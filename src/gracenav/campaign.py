@@ -444,6 +444,12 @@ def run_campaign(
         os.close(fd)
         trials_path = out / "trials.jsonl"
         done = _read_done(trials_path, spec, params)
+        if trials_path.exists():
+            # Drop a line cut by an interruption, so that the next record starts a line.
+            text = trials_path.read_bytes()
+            keep = text.rfind(b"\n") + 1
+            if keep < len(text):
+                os.truncate(trials_path, keep)
         todo = [i for i in range(spec.trials) if i not in done]
         with trials_path.open("a", encoding="utf-8") as fh:
             if not trials_path.stat().st_size:
