@@ -8,7 +8,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-__all__ = ["wilson_interval", "summarise", "write_results"]
+__all__ = ["summarise", "wilson_interval", "write_results"]
 
 
 def wilson_interval(successes: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
@@ -29,8 +29,7 @@ def _rate(rows: list[dict[str, Any]]) -> dict[str, Any]:
     n = len(rows)
     k = sum(1 for r in rows if r["reached_goal"])
     lo, hi = wilson_interval(k, n)
-    return {"n": n, "successes": k, "rate": k / n if n else None,
-            "ci95": [lo, hi] if n else None}
+    return {"n": n, "successes": k, "rate": k / n if n else None, "ci95": [lo, hi] if n else None}
 
 
 def summarise(rows: list[dict[str, Any]], *, bins: int = 5) -> dict[str, Any]:
@@ -46,8 +45,12 @@ def summarise(rows: list[dict[str, Any]], *, bins: int = 5) -> dict[str, Any]:
             entry["impulse_bins"] = []
             for b in range(bins):
                 a, z = lo + b * width, lo + (b + 1) * width
-                sel = [r for r in rs if r.get("impulse_ns") is not None
-                       and (a <= r["impulse_ns"] < z or (b == bins - 1 and r["impulse_ns"] == z))]
+                sel = [
+                    r
+                    for r in rs
+                    if r.get("impulse_ns") is not None
+                    and (a <= r["impulse_ns"] < z or (b == bins - 1 and r["impulse_ns"] == z))
+                ]
                 entry["impulse_bins"].append({"low_ns": a, "high_ns": z, **_rate(sel)})
         out["planners"][planner] = entry
     return out
@@ -71,8 +74,11 @@ def write_results(rows: list[dict[str, Any]], directory: Path) -> list[Path]:
         import pyarrow as pa
         import pyarrow.parquet as pq
     except ImportError:
-        print("gracenav campaign: pyarrow not installed, results.parquet skipped "
-              "(pip install 'gracenav[campaign]')", file=sys.stderr)
+        print(
+            "gracenav campaign: pyarrow not installed, results.parquet skipped "
+            "(pip install 'gracenav[campaign]')",
+            file=sys.stderr,
+        )
     else:
         table = pa.table({k: [r.get(k) for r in rows] for k in cols})
         pq.write_table(table, directory / "results.parquet")
@@ -80,16 +86,20 @@ def write_results(rows: list[dict[str, Any]], directory: Path) -> list[Path]:
     summary = summarise(rows)
     (directory / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     written.append(directory / "summary.json")
-    lines = ["| planner | trials | success | 95 % CI | median time to goal (s) | max lean (°) |",
-             "|---|---|---|---|---|---|"]
+    lines = [
+        "| planner | trials | success | 95 % CI | median time to goal (s) | max lean (°) |",
+        "|---|---|---|---|---|---|",
+    ]
     for planner, e in summary["planners"].items():
         rs = [r for r in rows if r["planner"] == planner]
         times = sorted(r["time_s"] for r in rs if r["reached_goal"])
         med = f"{times[len(times) // 2]:.1f}" if times else "–"
         lean = max((r["max_lean_deg"] for r in rs), default=math.nan)
         ci = e["ci95"]
-        lines.append(f"| {planner} | {e['n']} | {e['rate']:.1%} | "
-                     f"[{ci[0]:.1%}, {ci[1]:.1%}] | {med} | {lean:.1f} |")
+        lines.append(
+            f"| {planner} | {e['n']} | {e['rate']:.1%} | "
+            f"[{ci[0]:.1%}, {ci[1]:.1%}] | {med} | {lean:.1f} |"
+        )
     (directory / "table.md").write_text("\n".join(lines) + "\n")
     written.append(directory / "table.md")
     return written

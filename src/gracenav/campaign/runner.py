@@ -29,9 +29,21 @@ def run_trial(campaign: Campaign, index: int, planner: str) -> dict[str, Any]:
     result = run_scenario(scenario)
     run = result.runs[0].to_dict()
     row: dict[str, Any] = {"planner": planner, **inputs}
-    for key in ("reached_goal", "outcome", "time_s", "path_length_m", "final_error_m",
-                "max_lean_deg", "max_jerk_mps3", "max_torque_nm", "min_clearance_m",
-                "verified_recoveries", "switches", "non_graceful_switches", "balancing_s"):
+    for key in (
+        "reached_goal",
+        "outcome",
+        "time_s",
+        "path_length_m",
+        "final_error_m",
+        "max_lean_deg",
+        "max_jerk_mps3",
+        "max_torque_nm",
+        "min_clearance_m",
+        "verified_recoveries",
+        "switches",
+        "non_graceful_switches",
+        "balancing_s",
+    ):
         row[key] = run[key]
     return row
 
@@ -82,12 +94,14 @@ def run_campaign(
         os.replace(tmp, meta)
     log = out / _LOG
     done = _read_log(log)
-    jobs = [(p, i) for p in campaign.planners for i in range(campaign.trials)
-            if (p, i) not in done]
+    jobs = [(p, i) for p in campaign.planners for i in range(campaign.trials) if (p, i) not in done]
     total = len(campaign.planners) * campaign.trials
     count = total - len(jobs)
     processes = processes or (os.cpu_count() or 1)
     with open(log, "a") as fh:
+        if fh.tell() > 0 and not log.read_bytes().endswith(b"\n"):
+            fh.write("\n")  # end a line cut by a kill, so the next one stands alone
+
         def record(row: dict[str, Any]) -> None:
             nonlocal count
             fh.write(json.dumps(row) + "\n")

@@ -71,8 +71,9 @@ def _range(f: Fields, key: str, *, minimum: float, maximum: float) -> tuple[floa
     return float(lo), float(hi)
 
 
-def parse_campaign(data: Any, *, source: str = "campaign", base: Path | None = None,
-                   digest: str = "") -> Campaign:
+def parse_campaign(
+    data: Any, *, source: str = "campaign", base: Path | None = None, digest: str = ""
+) -> Campaign:
     """Check a campaign document and return a :class:`Campaign`.
 
     Raises

@@ -23,8 +23,12 @@ def register(sub: Any) -> None:
     )
     c.add_argument("campaign", type=Path, help="campaign YAML file")
     c.add_argument("--out", type=Path, required=True, help="output directory")
-    c.add_argument("--processes", type=int, default=None,
-                   help="worker processes (default: the number of cores)")
+    c.add_argument(
+        "--processes",
+        type=int,
+        default=None,
+        help="worker processes (default: the number of cores)",
+    )
     c.set_defaults(func=run_campaign_cmd)
 
 
