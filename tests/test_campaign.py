@@ -126,3 +126,21 @@ def test_two_processes_equal_one_and_outputs(tmp_path: Path) -> None:
     assert g["successes"] == k
     assert g["ci95"] == pytest.approx(list(wilson_interval(k, 2)), abs=1e-12)
     assert (tmp_path / "two" / "table.md").read_text().startswith("| planner |")
+
+
+def test_random_pairs_have_clearance_and_distance(tmp_path: Path) -> None:
+    import yaml
+
+    from gracenav.world import load_map
+
+    data = yaml.safe_load(TINY) | {"pairs": {"clearance": 0.4, "min_distance": 1.0}}
+    c = parse_campaign(data, source="c.yaml")
+    world = load_map(c.scenario["map"])
+    for i in range(20):
+        d = draw_trial(c, i)
+        a, b = (d["start_x"], d["start_y"]), (d["goal_x"], d["goal_y"])
+        assert math.dist(a, b) >= 1.0
+        assert world.clearance([a, b]).min() >= 0.4 - 1e-9
+    bad = yaml.safe_load(TINY) | {"pairs": {"clearance": 0.4, "min_distance": 50.0}}
+    with pytest.raises(ConfigError, match="'pairs.min_distance' 50 m apart in 1000 draws"):
+        draw_trial(parse_campaign(bad, source="c.yaml"), 0)

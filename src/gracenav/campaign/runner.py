@@ -25,10 +25,17 @@ def run_trial(campaign: Campaign, index: int, planner: str) -> dict[str, Any]:
 
     inputs = draw_trial(campaign, index)
     doc = trial_scenario(campaign, inputs)
+    from gracenav.errors import PlanningError
+
     scenario = parse_scenario(doc, source=f"{campaign.name} trial {index}")
-    result = run_scenario(scenario)
-    run = result.runs[0].to_dict()
     row: dict[str, Any] = {"planner": planner, **inputs}
+    try:
+        result = run_scenario(scenario)
+    except PlanningError:
+        # The library has no verified way from this start to this goal: a failed trial.
+        row.update(reached_goal=False, outcome="no_plan")
+        return row
+    run = result.runs[0].to_dict()
     for key in (
         "reached_goal",
         "outcome",

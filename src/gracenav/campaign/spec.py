@@ -14,7 +14,7 @@ from gracenav.errors import ConfigError
 
 __all__ = ["Campaign", "load_campaign", "parse_campaign"]
 
-_TOP = ("name", "scenario", "trials", "seed", "planners", "push", "noise", "plant_params")
+_TOP = ("name", "scenario", "trials", "seed", "planners", "push", "noise", "plant_params", "pairs")
 PLANNERS = ("gracenav",)
 """Planners a campaign may compare."""
 MAX_TRIALS = 100_000
@@ -41,6 +41,9 @@ class Campaign:
         Position noise standard deviations (m), one drawn uniformly per trial.
     plant_params : tuple of (str, float, float)
         Field, low and high factor, drawn uniformly per trial.
+    pairs : tuple of float or None
+        (clearance (m), minimum start-goal distance (m)) of random start/goal pairs
+        drawn from the map's free space; None: the base scenario's start and goal.
     digest : str
         SHA-256 of the campaign file's bytes (resume check).
     """
@@ -55,6 +58,7 @@ class Campaign:
     noise_std: tuple[float, ...]
     plant_params: tuple[tuple[str, float, float], ...]
     digest: str
+    pairs: tuple[float, float] | None = None
 
 
 def _range(f: Fields, key: str, *, minimum: float, maximum: float) -> tuple[float, float]:
@@ -132,7 +136,16 @@ def parse_campaign(
         for k in pp.data:
             lo, hi = _range(pp, k, minimum=PLANT_FACTOR_RANGE[0], maximum=PLANT_FACTOR_RANGE[1])
             factors.append((str(k), lo, hi))
+    pairs = None
+    if "pairs" in f.data:
+        pf = Fields(f.get("pairs"), "pairs", source)
+        pf.check_keys(("clearance", "min_distance"))
+        pairs = (
+            float(pf.number("clearance", minimum=0.0, maximum=100.0, unit="m")),
+            float(pf.number("min_distance", 0.0, minimum=0.0, maximum=1.0e4, unit="m")),
+        )
     return Campaign(
+        pairs=pairs,
         name=name,
         scenario=scen_doc,
         trials=trials,
