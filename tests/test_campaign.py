@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import pytest
@@ -126,6 +127,8 @@ def test_two_processes_equal_one_and_outputs(tmp_path: Path) -> None:
     assert g["successes"] == k
     assert g["ci95"] == pytest.approx(list(wilson_interval(k, 2)), abs=1e-12)
     assert (tmp_path / "two" / "table.md").read_text().startswith("| planner |")
+    for name in ("success_vs_impulse.png", "time_to_goal.png", "lean.png"):
+        assert (tmp_path / "two" / name).read_bytes()[:4] == b"\x89PNG"
 
 
 def test_random_pairs_have_clearance_and_distance(tmp_path: Path) -> None:
@@ -142,5 +145,5 @@ def test_random_pairs_have_clearance_and_distance(tmp_path: Path) -> None:
         assert math.dist(a, b) >= 1.0
         assert world.clearance([a, b]).min() >= 0.4 - 1e-9
     bad = yaml.safe_load(TINY) | {"pairs": {"clearance": 0.4, "min_distance": 50.0}}
-    with pytest.raises(ConfigError, match="'pairs.min_distance' 50 m apart in 1000 draws"):
+    with pytest.raises(ConfigError, match=re.escape("'pairs.min_distance' 50 m apart in 1000")):
         draw_trial(parse_campaign(bad, source="c.yaml"), 0)

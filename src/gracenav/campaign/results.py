@@ -8,7 +8,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-__all__ = ["summarise", "wilson_interval", "write_results"]
+__all__ = ["plot_results", "summarise", "wilson_interval", "write_results"]
 
 
 def wilson_interval(successes: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
@@ -94,7 +94,9 @@ def write_results(rows: list[dict[str, Any]], directory: Path) -> list[Path]:
         rs = [r for r in rows if r["planner"] == planner]
         times = sorted(r["time_s"] for r in rs if r["reached_goal"])
         med = f"{times[len(times) // 2]:.1f}" if times else "–"
-        lean = max((r["max_lean_deg"] for r in rs), default=math.nan)
+        lean = max(
+            (r["max_lean_deg"] for r in rs if r.get("max_lean_deg") is not None), default=math.nan
+        )
         ci = e["ci95"]
         lines.append(
             f"| {planner} | {e['n']} | {e['rate']:.1%} | "
@@ -102,4 +104,60 @@ def write_results(rows: list[dict[str, Any]], directory: Path) -> list[Path]:
         )
     (directory / "table.md").write_text("\n".join(lines) + "\n")
     written.append(directory / "table.md")
+    written += plot_results(rows, summary, directory)
+    return written
+
+
+def plot_results(
+    rows: list[dict[str, Any]], summary: dict[str, Any], directory: Path
+) -> list[Path]:
+    """Write success_vs_impulse.png (if pushed), time_to_goal.png and lean.png."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    written = []
+    planners = list(summary["planners"])
+    if any("impulse_bins" in e for e in summary["planners"].values()):
+        fig, ax = plt.subplots(figsize=(5, 3.5))
+        for planner in planners:
+            bins = [b for b in summary["planners"][planner].get("impulse_bins", []) if b["n"]]
+            x = [(b["low_ns"] + b["high_ns"]) / 2 for b in bins]
+            y = [b["rate"] for b in bins]
+            err = [
+                [b["rate"] - b["ci95"][0] for b in bins],
+                [b["ci95"][1] - b["rate"] for b in bins],
+            ]
+            ax.errorbar(x, y, yerr=err, marker="o", capsize=3, label=planner)
+        ax.set_xlabel("push impulse (N s)")
+        ax.set_ylabel("success rate (Wilson 95 %)")
+        ax.set_ylim(-0.05, 1.05)
+        ax.legend()
+        fig.tight_layout()
+        fig.savefig(directory / "success_vs_impulse.png", dpi=120)
+        plt.close(fig)
+        written.append(directory / "success_vs_impulse.png")
+    for key, name, label in (
+        ("time_s", "time_to_goal.png", "time to goal (s)"),
+        ("max_lean_deg", "lean.png", "max lean (°)"),
+    ):
+        fig, ax = plt.subplots(figsize=(5, 3.5))
+        for planner in planners:
+            vals = [
+                r[key]
+                for r in rows
+                if r["planner"] == planner
+                and r.get(key) is not None
+                and (key != "time_s" or r["reached_goal"])
+            ]
+            if vals:
+                ax.hist(vals, bins=20, alpha=0.6, label=planner)
+        ax.set_xlabel(label)
+        ax.set_ylabel("trials")
+        ax.legend()
+        fig.tight_layout()
+        fig.savefig(directory / name, dpi=120)
+        plt.close(fig)
+        written.append(directory / name)
     return written
