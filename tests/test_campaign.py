@@ -147,3 +147,18 @@ def test_random_pairs_have_clearance_and_distance(tmp_path: Path) -> None:
     bad = yaml.safe_load(TINY) | {"pairs": {"clearance": 0.4, "min_distance": 50.0}}
     with pytest.raises(ConfigError, match=re.escape("'pairs.min_distance' 50 m apart in 1000")):
         draw_trial(parse_campaign(bad, source="c.yaml"), 0)
+
+
+def test_cli_refuses_missing_scenario_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from gracenav.cli import main
+
+    path = tmp_path / "bad.yaml"
+    path.write_text("trials: 2\nscenario: nope.yaml\n")
+    code = main(["campaign", str(path), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip()
+    assert code != 0
+    assert err.endswith(f"{path}: 'scenario': file {tmp_path / 'nope.yaml'} not found")
+    assert "\n" not in err
+    assert not (tmp_path / "out").exists()
