@@ -7,10 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from gracenav._validate import Fields
-from gracenav.errors import ConfigError
 
 __all__ = ["Campaign", "load_campaign", "parse_campaign"]
 
@@ -98,7 +95,9 @@ def parse_campaign(
         path = (base / scen).resolve()
         if not path.is_file():
             raise f.fail(f"'scenario': file {path} not found")
-        scen_doc = yaml.safe_load(path.read_text())
+        from gracenav._io import parse_yaml, read_text_file
+
+        scen_doc = parse_yaml(read_text_file(path, "scenario file"), str(path))
         scen_base = path.parent
     elif isinstance(scen, dict):
         scen_doc = dict(scen)
@@ -161,15 +160,11 @@ def parse_campaign(
 
 def load_campaign(path: str | Path) -> Campaign:
     """Read and check a campaign YAML file."""
+    from gracenav._io import parse_yaml, read_text_file
+
     path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read: {exc.strerror}") from None
-    try:
-        data = yaml.safe_load(raw)
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: not valid YAML: {str(exc).splitlines()[0]}") from None
+    text = read_text_file(path, "campaign file")
+    data = parse_yaml(text, str(path))
     return parse_campaign(
-        data, source=str(path), base=path.parent, digest=hashlib.sha256(raw).hexdigest()
+        data, source=str(path), base=path.parent, digest=hashlib.sha256(text.encode()).hexdigest()
     )
