@@ -22,7 +22,9 @@ def wilson_interval(successes: int, n: int, z: float = 1.959963984540054) -> tup
     d = 1.0 + z * z / n
     c = (p + z * z / (2 * n)) / d
     h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
-    return (max(0.0, c - h), min(1.0, c + h))
+    lo = 0.0 if successes == 0 else max(0.0, c - h)
+    hi = 1.0 if successes == n else min(1.0, c + h)
+    return (lo, hi)
 
 
 def _rate(rows: list[dict[str, Any]]) -> dict[str, Any]:
@@ -126,8 +128,8 @@ def plot_results(
             x = [(b["low_ns"] + b["high_ns"]) / 2 for b in bins]
             y = [b["rate"] for b in bins]
             err = [
-                [b["rate"] - b["ci95"][0] for b in bins],
-                [b["ci95"][1] - b["rate"] for b in bins],
+                [max(0.0, b["rate"] - b["ci95"][0]) for b in bins],
+                [max(0.0, b["ci95"][1] - b["rate"]) for b in bins],
             ]
             ax.errorbar(x, y, yerr=err, marker="o", capsize=3, label=planner)
         ax.set_xlabel("push impulse (N s)")
