@@ -30,7 +30,7 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """Build the argument parser with all sub-commands."""
-    from gracenav.cli import palette_cmd, plot_cmd, run_cmd, simulate_cmd
+    from gracenav.cli import campaign_cmd, palette_cmd, plot_cmd, run_cmd, simulate_cmd
 
     parser = _Parser(
         prog="gracenav",
@@ -48,6 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
     simulate_cmd.register(sub)
     palette_cmd.register(sub)
     plot_cmd.register(sub)
+    campaign_cmd.register(sub)
     return parser
 
 

@@ -1,0 +1,165 @@
+"""Campaign results: tables, Wilson intervals, summary and figures."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+__all__ = ["plot_results", "summarise", "wilson_interval", "write_results"]
+
+
+def wilson_interval(successes: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
+    """Wilson score interval of a binomial proportion (default 95 %).
+
+    Returns (nan, nan) for ``n == 0``.
+    """
+    if n <= 0:
+        return (math.nan, math.nan)
+    p = successes / n
+    d = 1.0 + z * z / n
+    c = (p + z * z / (2 * n)) / d
+    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
+    lo = 0.0 if successes == 0 else max(0.0, c - h)
+    hi = 1.0 if successes == n else min(1.0, c + h)
+    return (lo, hi)
+
+
+def _rate(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    n = len(rows)
+    k = sum(1 for r in rows if r["reached_goal"])
+    lo, hi = wilson_interval(k, n)
+    return {"n": n, "successes": k, "rate": k / n if n else None, "ci95": [lo, hi] if n else None}
+
+
+def summarise(rows: list[dict[str, Any]], *, bins: int = 5) -> dict[str, Any]:
+    """Success rates with Wilson 95 % intervals per planner and per impulse bin."""
+    out: dict[str, Any] = {"trials": len(rows), "planners": {}}
+    for planner in sorted({r["planner"] for r in rows}):
+        rs = [r for r in rows if r["planner"] == planner]
+        entry = _rate(rs)
+        imp = [r["impulse_ns"] for r in rs if r.get("impulse_ns") is not None]
+        if imp:
+            lo, hi = min(imp), max(imp)
+            width = (hi - lo) / bins or 1.0
+            entry["impulse_bins"] = []
+            for b in range(bins):
+                a, z = lo + b * width, lo + (b + 1) * width
+                sel = [
+                    r
+                    for r in rs
+                    if r.get("impulse_ns") is not None
+                    and (a <= r["impulse_ns"] < z or (b == bins - 1 and r["impulse_ns"] == z))
+                ]
+                entry["impulse_bins"].append({"low_ns": a, "high_ns": z, **_rate(sel)})
+        out["planners"][planner] = entry
+    return out
+
+
+def write_results(rows: list[dict[str, Any]], directory: Path) -> list[Path]:
+    """Write results.csv (and results.parquet if pyarrow is there), summary.json, table.md."""
+    import sys
+
+    written = []
+    cols: list[str] = []
+    for r in rows:
+        cols += [k for k in r if k not in cols]
+    with open(directory / "results.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=cols)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: r.get(k) for k in cols})
+    written.append(directory / "results.csv")
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError:
+        print(
+            "gracenav campaign: pyarrow not installed, results.parquet skipped "
+            "(pip install 'gracenav[campaign]')",
+            file=sys.stderr,
+        )
+    else:
+        table = pa.table({k: [r.get(k) for r in rows] for k in cols})
+        pq.write_table(table, directory / "results.parquet")
+        written.append(directory / "results.parquet")
+    summary = summarise(rows)
+    (directory / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    written.append(directory / "summary.json")
+    lines = [
+        "| planner | trials | success | 95 % CI | median time to goal (s) | max lean (°) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for planner, e in summary["planners"].items():
+        rs = [r for r in rows if r["planner"] == planner]
+        times = sorted(r["time_s"] for r in rs if r["reached_goal"])
+        med = f"{times[len(times) // 2]:.1f}" if times else "–"
+        lean = max(
+            (r["max_lean_deg"] for r in rs if r.get("max_lean_deg") is not None), default=math.nan
+        )
+        ci = e["ci95"]
+        lines.append(
+            f"| {planner} | {e['n']} | {e['rate']:.1%} | "
+            f"[{ci[0]:.1%}, {ci[1]:.1%}] | {med} | {lean:.1f} |"
+        )
+    (directory / "table.md").write_text("\n".join(lines) + "\n")
+    written.append(directory / "table.md")
+    written += plot_results(rows, summary, directory)
+    return written
+
+
+def plot_results(
+    rows: list[dict[str, Any]], summary: dict[str, Any], directory: Path
+) -> list[Path]:
+    """Write success_vs_impulse.png (if pushed), time_to_goal.png and lean.png."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    written = []
+    planners = list(summary["planners"])
+    if any("impulse_bins" in e for e in summary["planners"].values()):
+        fig, ax = plt.subplots(figsize=(5, 3.5))
+        for planner in planners:
+            bins = [b for b in summary["planners"][planner].get("impulse_bins", []) if b["n"]]
+            x = [(b["low_ns"] + b["high_ns"]) / 2 for b in bins]
+            y = [b["rate"] for b in bins]
+            err = [
+                [max(0.0, b["rate"] - b["ci95"][0]) for b in bins],
+                [max(0.0, b["ci95"][1] - b["rate"]) for b in bins],
+            ]
+            ax.errorbar(x, y, yerr=err, marker="o", capsize=3, label=planner)
+        ax.set_xlabel("push impulse (N s)")
+        ax.set_ylabel("success rate (Wilson 95 %)")
+        ax.set_ylim(-0.05, 1.05)
+        ax.legend()
+        fig.tight_layout()
+        fig.savefig(directory / "success_vs_impulse.png", dpi=120)
+        plt.close(fig)
+        written.append(directory / "success_vs_impulse.png")
+    for key, name, label in (
+        ("time_s", "time_to_goal.png", "time to goal (s)"),
+        ("max_lean_deg", "lean.png", "max lean (°)"),
+    ):
+        fig, ax = plt.subplots(figsize=(5, 3.5))
+        for planner in planners:
+            vals = [
+                r[key]
+                for r in rows
+                if r["planner"] == planner
+                and r.get(key) is not None
+                and (key != "time_s" or r["reached_goal"])
+            ]
+            if vals:
+                ax.hist(vals, bins=20, alpha=0.6, label=planner)
+        ax.set_xlabel(label)
+        ax.set_ylabel("trials")
+        ax.legend()
+        fig.tight_layout()
+        fig.savefig(directory / name, dpi=120)
+        plt.close(fig)
+        written.append(directory / name)
+    return written

@@ -1,0 +1,164 @@
+"""Campaigns: schema, per-trial draws, Wilson intervals, reproducibility and resume."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import pytest
+
+from gracenav.campaign import load_campaign, parse_campaign, run_campaign, wilson_interval
+from gracenav.campaign.draw import draw_trial
+from gracenav.errors import ConfigError, OutputError
+
+TINY = """\
+name: tiny
+seed: 3
+trials: 2
+scenario:
+  name: tiny
+  map:
+    bounds: [[0.0, 0.0], [3.0, 3.0]]
+  robot: {footprint_radius: 0.2}
+  planner: {cost: time, max_halvings: 0}
+  task:
+    kind: point_to_point
+    goal: [2.0, 2.0, 0.0, 0.0]
+    starts: [[1.0, 1.0, 0.0, 0.0]]
+  simulation: {max_time: 20}
+push: {impulse: [0.0, 6.0], time: [0.5, 2.0]}
+noise: [0.0, 0.002]
+plant_params: {body_mass: [0.8, 1.2], ball_radius: [0.98, 1.02]}
+"""
+
+
+def _tiny(tmp_path: Path, text: str = TINY) -> Path:
+    path = tmp_path / "tiny.yaml"
+    path.write_text(text)
+    return path
+
+
+def test_wilson_closed_form() -> None:
+    # 8 of 10 at z = 1.96: centre (0.8 + 0.192) / 1.384, half-width from the closed form.
+    z = 1.959963984540054
+    n, p = 10, 0.8
+    d = 1 + z * z / n
+    c = (p + z * z / (2 * n)) / d
+    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
+    lo, hi = wilson_interval(8, 10)
+    assert lo == pytest.approx(c - h, rel=0, abs=1e-12)
+    assert hi == pytest.approx(c + h, rel=0, abs=1e-12)
+    assert lo == pytest.approx(0.4902, abs=1e-4)
+    assert hi == pytest.approx(0.9433, abs=1e-4)
+    assert wilson_interval(0, 5)[0] == 0.0
+    assert wilson_interval(5, 5)[1] == 1.0
+
+
+def test_draws_depend_only_on_seed_and_index(tmp_path: Path) -> None:
+    c = load_campaign(_tiny(tmp_path))
+    a = draw_trial(c, 1)
+    assert draw_trial(c, 1) == a
+    assert draw_trial(c, 0) != a
+    assert 0.0 <= a["impulse_ns"] <= 6.0
+    assert 0.5 <= a["push_time_s"] <= 2.0
+    assert 0.8 <= a["factor_body_mass"] <= 1.2
+    assert a["noise_std_m"] in (0.0, 0.002)
+
+
+@pytest.mark.parametrize(
+    ("patch", "message"),
+    [
+        ({"trials": 0}, "'trials'"),
+        ({"colour": 1}, "unknown key(s) 'colour'"),
+        ({"push": {"impulse": [5, 1], "time": [0, 1]}}, "'push.impulse' low 5 exceeds high 1"),
+        ({"plant_params": {"gravity": [1, 1]}}, "'plant_params.gravity'"),
+        ({"planners": ["rrt"]}, "'planners'"),
+    ],
+)
+def test_schema_errors(patch: dict, message: str) -> None:
+    import yaml
+
+    data = yaml.safe_load(TINY) | patch
+    with pytest.raises(ConfigError) as err:
+        parse_campaign(data, source="c.yaml")
+    text = str(err.value)
+    assert text.startswith("c.yaml: ")
+    assert message in text
+    assert "\n" not in text
+
+
+def test_resume_equals_uninterrupted_and_refuses_other_file(tmp_path: Path) -> None:
+    c = load_campaign(_tiny(tmp_path))
+    full = run_campaign(c, tmp_path / "a", processes=1)
+    assert [r["trial"] for r in full] == [0, 1]
+    # An interrupted run: only the first line and half of the second survive.
+    lines = (tmp_path / "a" / "trials.jsonl").read_text().splitlines()
+    (tmp_path / "b").mkdir()
+    (tmp_path / "b" / "campaign.json").write_text((tmp_path / "a" / "campaign.json").read_text())
+    (tmp_path / "b" / "trials.jsonl").write_text(lines[0] + "\n" + lines[1][:20])
+    seen = []
+    resumed = run_campaign(c, tmp_path / "b", processes=1, progress=lambda d, n: seen.append(d))
+    assert seen == [2]  # only the missing trial ran
+    assert json.dumps(resumed, sort_keys=True) == json.dumps(full, sort_keys=True)
+    again = run_campaign(c, tmp_path / "b", processes=1, progress=lambda d, n: seen.append(d))
+    assert seen == [2]  # nothing left to run: the appended line reads back
+    assert json.dumps(again, sort_keys=True) == json.dumps(full, sort_keys=True)
+    other = load_campaign(_tiny(tmp_path, TINY.replace("seed: 3", "seed: 4")))
+    with pytest.raises(OutputError, match="different campaign file"):
+        run_campaign(other, tmp_path / "a", processes=1)
+
+
+def test_two_processes_equal_one_and_outputs(tmp_path: Path) -> None:
+    pa = pytest.importorskip("pyarrow.parquet")
+    from gracenav.campaign.results import write_results
+
+    c = load_campaign(_tiny(tmp_path))
+    one = run_campaign(c, tmp_path / "one", processes=1)
+    two = run_campaign(c, tmp_path / "two", processes=2)
+    assert json.dumps(two, sort_keys=True) == json.dumps(one, sort_keys=True)
+    write_results(two, tmp_path / "two")
+    table = pa.read_table(tmp_path / "two" / "results.parquet").to_pylist()
+    assert [r["max_lean_deg"] for r in table] == [r["max_lean_deg"] for r in one]
+    summary = json.loads((tmp_path / "two" / "summary.json").read_text())
+    g = summary["planners"]["gracenav"]
+    k = sum(r["reached_goal"] for r in one)
+    assert g["successes"] == k
+    assert g["ci95"] == pytest.approx(list(wilson_interval(k, 2)), abs=1e-12)
+    assert (tmp_path / "two" / "table.md").read_text().startswith("| planner |")
+    for name in ("success_vs_impulse.png", "time_to_goal.png", "lean.png"):
+        assert (tmp_path / "two" / name).read_bytes()[:4] == b"\x89PNG"
+
+
+def test_random_pairs_have_clearance_and_distance(tmp_path: Path) -> None:
+    import yaml
+
+    from gracenav.world import load_map
+
+    data = yaml.safe_load(TINY) | {"pairs": {"clearance": 0.4, "min_distance": 1.0}}
+    c = parse_campaign(data, source="c.yaml")
+    world = load_map(c.scenario["map"])
+    for i in range(20):
+        d = draw_trial(c, i)
+        a, b = (d["start_x"], d["start_y"]), (d["goal_x"], d["goal_y"])
+        assert math.dist(a, b) >= 1.0
+        assert world.clearance([a, b]).min() >= 0.4 - 1e-9
+    bad = yaml.safe_load(TINY) | {"pairs": {"clearance": 0.4, "min_distance": 50.0}}
+    with pytest.raises(ConfigError, match=re.escape("'pairs.min_distance' 50 m apart in 1000")):
+        draw_trial(parse_campaign(bad, source="c.yaml"), 0)
+
+
+def test_cli_refuses_missing_scenario_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from gracenav.cli import main
+
+    path = tmp_path / "bad.yaml"
+    path.write_text("trials: 2\nscenario: nope.yaml\n")
+    code = main(["campaign", str(path), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip()
+    assert code != 0
+    assert err.endswith(f"{path}: 'scenario': file {tmp_path / 'nope.yaml'} not found")
+    assert "\n" not in err
+    assert not (tmp_path / "out").exists()
