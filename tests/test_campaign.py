@@ -162,3 +162,24 @@ def test_cli_refuses_missing_scenario_in_one_line(
     assert err.endswith(f"{path}: 'scenario': file {tmp_path / 'nope.yaml'} not found")
     assert "\n" not in err
     assert not (tmp_path / "out").exists()
+
+
+def test_params_reach_every_trial_and_a_resume_needs_the_same(tmp_path, capsys) -> None:
+    """--params is the simulated robot of every trial; resuming with other parameters is
+    refused on one line."""
+    from gracenav.cli import main
+
+    camp = _tiny(tmp_path)
+    heavy = tmp_path / "p.yaml"
+    heavy.write_text("body_mass: 60.0\n")
+    out = tmp_path / "o"
+    status = main(["campaign", str(camp), "--out", str(out), "--params", str(heavy)])
+    assert status == 0
+    assert json.loads((out / "campaign.json").read_text())["params"]["body_mass"] == 60.0
+    capsys.readouterr()
+    status = main(["campaign", str(camp), "--out", str(out), "--processes", "1"])
+    err = capsys.readouterr().err
+    assert status == 2 and "other robot parameters" in err and err.count("\n") == 1
+    status = main(["campaign", str(camp), "--out", str(tmp_path / "q"), "--processes", "0"])
+    err = capsys.readouterr().err
+    assert status == 2 and err.startswith("gracenav: error: --processes") and err.count("\n") == 1

@@ -19,8 +19,10 @@ _LOG = "trials.jsonl"
 _META = "campaign.json"
 
 
-def run_trial(campaign: Campaign, index: int, planner: str) -> dict[str, Any]:
-    """Run trial ``index`` with ``planner`` and return its result row."""
+def run_trial(campaign: Campaign, index: int, planner: str, params: Any = None) -> dict[str, Any]:
+    """Run trial ``index`` with ``planner`` and return its result row; ``params`` is the
+    simulated robot (:class:`gracenav.BallbotParams`, default the palette's), which the
+    trial's plant factors scale."""
     from gracenav.scenarios import parse_scenario, run_scenario
 
     inputs = draw_trial(campaign, index)
@@ -30,7 +32,7 @@ def run_trial(campaign: Campaign, index: int, planner: str) -> dict[str, Any]:
     scenario = parse_scenario(doc, source=f"{campaign.name} trial {index}")
     row: dict[str, Any] = {"planner": planner, **inputs}
     try:
-        result = run_scenario(scenario)
+        result = run_scenario(scenario, params=params)
     except PlanningError:
         # The library has no verified way from this start to this goal: a failed trial.
         row.update(reached_goal=False, outcome="no_plan")
@@ -73,9 +75,13 @@ def run_campaign(
     out: str | Path,
     *,
     processes: int | None = None,
+    params: Any = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> list[dict[str, Any]]:
     """Run every (planner, trial) not yet in ``out/trials.jsonl`` and return all rows.
+
+    ``params``: the simulated robot of every trial (``--params``); a resumed campaign
+    must use the same.
 
     Each finished trial is appended to ``out/trials.jsonl`` as one JSON line (flushed
     and synced), so an interrupted campaign resumes where it stopped.
@@ -83,21 +89,29 @@ def run_campaign(
     Raises
     ------
     OutputError
-        ``out`` holds results of a different campaign file.
+        ``out`` holds results of a different campaign file or robot parameters.
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     meta = out / _META
+    robot = None if params is None else params.to_dict()
     if meta.exists():
-        old = json.loads(meta.read_text()).get("digest")
-        if old != campaign.digest:
+        stored = json.loads(meta.read_text())
+        if stored.get("digest") != campaign.digest:
             raise OutputError(
                 f"--out {out}: holds results of a different campaign file (hash differs); "
                 "use another directory"
             )
+        if stored.get("params") != robot:
+            raise OutputError(
+                f"--out {out}: its trials were run with other robot parameters (--params); "
+                "use the same file or another directory"
+            )
     else:
         tmp = meta.with_suffix(".tmp")
-        tmp.write_text(json.dumps({"name": campaign.name, "digest": campaign.digest}) + "\n")
+        tmp.write_text(
+            json.dumps({"name": campaign.name, "digest": campaign.digest, "params": robot}) + "\n"
+        )
         os.replace(tmp, meta)
     log = out / _LOG
     done = _read_log(log)
@@ -121,10 +135,10 @@ def run_campaign(
 
         if processes <= 1:
             for p, i in jobs:
-                record(run_trial(campaign, i, p))
+                record(run_trial(campaign, i, p, params))
         elif jobs:
             with ProcessPoolExecutor(max_workers=processes) as pool:
-                futures = [pool.submit(run_trial, campaign, i, p) for p, i in jobs]
+                futures = [pool.submit(run_trial, campaign, i, p, params) for p, i in jobs]
                 for fut in as_completed(futures):
                     record(fut.result())
     return [done[(p, i)] for p in campaign.planners for i in range(campaign.trials)]

@@ -6,6 +6,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from gracenav.cli._common import add_params_argument, load_params
+
 __all__ = ["register"]
 
 
@@ -29,6 +31,7 @@ def register(sub: Any) -> None:
         default=None,
         help="worker processes (default: the number of cores)",
     )
+    add_params_argument(c)
     c.set_defaults(func=run_campaign_cmd)
 
 
@@ -37,8 +40,12 @@ def run_campaign_cmd(args: argparse.Namespace) -> int:
     from gracenav._progress import Progress
     from gracenav.campaign import load_campaign, run_campaign
     from gracenav.campaign.results import write_results
+    from gracenav.errors import ConfigError
 
+    if args.processes is not None and not 1 <= args.processes <= 256:
+        raise ConfigError(f"--processes must be an integer in [1, 256], got {args.processes}")
     campaign = load_campaign(args.campaign)
+    params = load_params(args)
     total = campaign.trials * len(campaign.planners)
     with Progress(total, f"{campaign.name}: trials") as bar:
         last = [0]
@@ -47,7 +54,9 @@ def run_campaign_cmd(args: argparse.Namespace) -> int:
             bar.update(done - last[0])
             last[0] = done
 
-        rows = run_campaign(campaign, args.out, processes=args.processes, progress=progress)
+        rows = run_campaign(
+            campaign, args.out, processes=args.processes, params=params, progress=progress
+        )
     written = write_results(rows, args.out)
     print(f"wrote {', '.join(str(p) for p in written)}")
     return 0
