@@ -393,3 +393,17 @@ def test_summary_reports_verified_recoveries_and_balancing_time() -> None:
     assert run.balancing_s == pytest.approx(float(np.sum(dt[ep.policy[:-1] == -1])), abs=1e-12)
     d = run.to_dict()
     assert d["verified_recoveries"] == run.verified_recoveries and "balancing_s" in d
+
+
+def test_palette_verify_rechecks_regulators_as_built(palette, tmp_path, capsys) -> None:
+    """`gracenav palette verify` re-verifies a capture regulator with the push leans and
+    boundary points it was built with, optionally on another plant (--params)."""
+    from gracenav.cli import main
+
+    small = dataclasses.replace(palette, policies=(palette["rest"], palette["regulate[ep=0.2m]"]))
+    path = small.save(tmp_path / "small.npz")
+    assert main(["palette", "verify", "--file", str(path)]) == 0
+    assert "all 2 policies verified" in capsys.readouterr().out
+    heavier = tmp_path / "p.yaml"
+    heavier.write_text("body_mass: 56.0\n")
+    assert main(["palette", "verify", "--file", str(path), "--params", str(heavier)]) == 0

@@ -58,6 +58,11 @@ def register(sub: Any) -> None:
         action="store_true",
         help="also simulate every graceful switch and report the commanded torque jump",
     )
+    add_params_argument(
+        v,
+        "the simulated plant the policies are re-verified on (a robustness check); the "
+        "controllers keep their nominal design",
+    )
     v.set_defaults(func=run_verify)
     sh = s.add_parser(
         "show",
@@ -153,10 +158,29 @@ def run_verify(args: argparse.Namespace) -> int:
     from gracenav.policies import switch_torque_jumps, verify_placements
 
     pal = load_palette(args.file)
+    plant = load_params(args)
     t0 = time.perf_counter()
     failed = []
+    opts = pal.options
+    leans = None
+    if any(p.capture for p in pal.policies):
+        from gracenav.policies import push_lean_table
+
+        reg = opts.regulator
+        impulses = reg.push_impulses if reg is not None else (4.0, 8.0, 16.0, 28.0, 40.0)
+        times = reg.push_times if reg is not None else (0.0, 0.1, 0.2, 0.3)
+        leans = push_lean_table(pal.gains, impulses, times, params=plant)
     for pol in pal.policies:
-        if not verify_placements(pol, pal.options).passed:
+        if pol.capture:  # as built: push leans and the capture family's boundary points
+            brake = pol.start_correlation is None
+            fam = opts.braking if brake else opts.regulator
+            points = fam.boundary_points if fam is not None else None
+            rep = verify_placements(
+                pol, opts, params=plant, push_leans=leans, boundary_points=points
+            )
+        else:
+            rep = verify_placements(pol, opts, params=plant)
+        if not rep.passed:
             failed.append(pol.name)
     dt = time.perf_counter() - t0
     if failed:
