@@ -576,7 +576,7 @@ class PolicyLibrary:
         result: _StartIndex = idx
         return result
 
-    def _hits(self, points: FloatArray, *, any_only: bool = False) -> tuple[IntArray, IntArray]:
+    def _hits(self, points: FloatArray) -> tuple[IntArray, IntArray]:
         """(query row, group) pairs where the group's start domain contains the point.
 
         With per-axis shape [[a, b], [b, c]], position offset e = x − q and velocity
@@ -584,8 +584,7 @@ class PolicyLibrary:
         = a|e + (b/a) u|² + (c − b²/a)|u|². For one start class (velocity and shape)
         the positions inside form a disc around x + (b/a) u of radius
         √((1 − (c − b²/a)|u|²)/a): only lattice points in its bounding box are looked
-        up. With ``any_only`` a query already hit is not looked up again (for
-        coverage: at least one pair per covered query, not all).
+        up (:func:`_covered_kernel` makes the same test, stopping at the first hit).
         """
         idx = self._start_index()
         m = points.shape[0]
@@ -599,33 +598,27 @@ class PolicyLibrary:
         out_q: list[IntArray] = []
         out_g: list[IntArray] = []
         for lo in range(0, m, rows):
-            q, g = self._hits_chunk(points[lo : lo + rows], any_only)
+            q, g = self._hits_chunk(points[lo : lo + rows])
             out_q.append(q + lo)
             out_g.append(g)
         return np.concatenate(out_q), np.concatenate(out_g)
 
-    def _hits_chunk(self, points: FloatArray, any_only: bool) -> tuple[IntArray, IntArray]:
+    def _hits_chunk(self, points: FloatArray) -> tuple[IntArray, IntArray]:
         idx = self._start_index()
         ny, nx = self.lattice_shape
         s = self.spacing
         x0, y0 = float(self.origin[0]), float(self.origin[1])
         px, py, vx, vy = points.T
-        todo = np.ones(points.shape[0], dtype=bool)
         out_q: list[IntArray] = []
         out_g: list[IntArray] = []
-        # Largest classes first: with any_only they settle the most queries early.
         shapes = idx.class_shape
-        order = np.argsort(shapes[:, 0] - shapes[:, 1] ** 2 / shapes[:, 2])
-        for ci in order:
+        for ci in range(shapes.shape[0]):
             a, b, c = (float(v) for v in shapes[ci])
             schur = c - b * b / a
             cvx, cvy = idx.class_velocity[ci]
             ux, uy = vx - cvx, vy - cvy
             uu = ux * ux + uy * uy
-            feasible = uu * schur <= 1.0
-            if any_only:
-                feasible &= todo
-            qq = np.flatnonzero(feasible)
+            qq = np.flatnonzero(uu * schur <= 1.0)
             if qq.size == 0:
                 continue
             ux, uy, uu = ux[qq], uy[qq], uu[qq]
@@ -655,8 +648,6 @@ class PolicyLibrary:
             found = (pos < idx.keys.size) & (idx.keys[pos_c] == key)
             out_q.append(q[found])
             out_g.append(pos[found])
-            if any_only:
-                todo[q[found]] = False
         if not out_q:
             return np.zeros(0, np.int64), np.zeros(0, np.int64)
         return np.concatenate(out_q), np.concatenate(out_g)
