@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from gracenav._validate import Fields
+from gracenav._validate import Fields, check_number
 
 __all__ = ["Campaign", "load_campaign", "parse_campaign"]
 
@@ -64,8 +64,8 @@ def _range(f: Fields, key: str, *, minimum: float, maximum: float) -> tuple[floa
     if not isinstance(value, list) or len(value) != 2:
         raise f.fail(f"'{path}' must be a list [low, high]")
     lo, hi = (
-        Fields({"v": v}, path, f.source).number("v", minimum=minimum, maximum=maximum)
-        for v in value
+        check_number(v, f"{path}[{i}]", f.source, minimum=minimum, maximum=maximum)
+        for i, v in enumerate(value)
     )
     if lo > hi:
         raise f.fail(f"'{path}' low {lo:g} exceeds high {hi:g}")
@@ -109,35 +109,35 @@ def parse_campaign(
     m = scen_doc.get("map")
     if isinstance(m, dict) and isinstance(m.get("ros_map"), str):
         scen_doc["map"] = {**m, "ros_map": str((scen_base / m["ros_map"]).resolve())}
-    trials = int(f.number("trials", minimum=1, maximum=MAX_TRIALS))
-    if trials != f.get("trials"):
-        raise f.fail("'trials' must be an integer")
-    seed = int(f.number("seed", 0, minimum=0, maximum=2**32 - 1))
+    trials = f.integer("trials", minimum=1, maximum=MAX_TRIALS)
+    seed = f.integer("seed", 0, minimum=0, maximum=2**32 - 1)
     planners = f.get("planners", ["gracenav"])
     if not isinstance(planners, list) or not planners or any(p not in PLANNERS for p in planners):
         raise f.fail(f"'planners' must be a non-empty list of {', '.join(PLANNERS)}")
     impulse: tuple[float, float] | None = None
     ptime = (0.0, 0.0)
     if "push" in f.data:
-        p = Fields(f.get("push"), "push", source)
+        p = f.sub("push")
         p.check_keys(("impulse", "time"))
         impulse = _range(p, "impulse", minimum=0.0, maximum=1000.0)
         ptime = _range(p, "time", minimum=0.0, maximum=1800.0)
     noise = f.get("noise", [0.0])
     if not isinstance(noise, list) or not noise:
         raise f.fail("'noise' must be a non-empty list of standard deviations (m)")
-    nf = Fields({str(i): v for i, v in enumerate(noise)}, "noise", source)
-    noise_std = tuple(float(nf.number(str(i), minimum=0.0, maximum=1.0)) for i in range(len(noise)))
+    noise_std = tuple(
+        check_number(v, f"noise[{i}]", source, minimum=0.0, maximum=1.0, unit="m")
+        for i, v in enumerate(noise)
+    )
     factors = []
     if "plant_params" in f.data:
-        pp = Fields(f.get("plant_params"), "plant_params", source)
+        pp = f.sub("plant_params")
         pp.check_keys(PLANT_FACTOR_FIELDS)
         for k in pp.data:
             lo, hi = _range(pp, k, minimum=PLANT_FACTOR_RANGE[0], maximum=PLANT_FACTOR_RANGE[1])
             factors.append((str(k), lo, hi))
     pairs = None
     if "pairs" in f.data:
-        pf = Fields(f.get("pairs"), "pairs", source)
+        pf = f.sub("pairs")
         pf.check_keys(("clearance", "min_distance"))
         pairs = (
             float(pf.number("clearance", minimum=0.0, maximum=100.0, unit="m")),
