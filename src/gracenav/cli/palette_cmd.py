@@ -154,7 +154,7 @@ def run_verify(args: argparse.Namespace) -> int:
     """Run ``gracenav palette verify``."""
     import time
 
-    from gracenav.palette import load_palette
+    from gracenav.palette import REGULATOR_NAME, load_palette
     from gracenav.policies import switch_torque_jumps, verify_placements
 
     pal = load_palette(args.file)
@@ -172,8 +172,8 @@ def run_verify(args: argparse.Namespace) -> int:
         leans = push_lean_table(pal.gains, impulses, times, params=plant)
     for pol in pal.policies:
         if pol.capture:  # as built: push leans and the capture family's boundary points
-            brake = pol.start_correlation is None
-            fam = opts.braking if brake else opts.regulator
+            regulator = pol.primitive.name == REGULATOR_NAME
+            fam = opts.regulator if regulator else opts.braking
             points = fam.boundary_points if fam is not None else None
             rep = verify_placements(
                 pol, opts, params=plant, push_leans=leans, boundary_points=points
