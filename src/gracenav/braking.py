@@ -43,6 +43,7 @@ from gracenav.policies import (
     MotionPolicy,
     PrimitiveKind,
     PushLeanTable,
+    RegulatorOptions,
     SampledPrimitive,
     VerificationOptions,
     push_lean_table,
@@ -142,9 +143,8 @@ def braking_policies(
     if brk is None:
         return ()
     if push_leans is None:
-        impulses = reg.push_impulses if reg is not None else (4.0, 8.0, 16.0, 28.0, 40.0)
-        times = reg.push_times if reg is not None else (0.0, 0.1, 0.2, 0.3)
-        push_leans = push_lean_table(gains, impulses, times)
+        pushes = reg or RegulatorOptions()  # the regulators' push table
+        push_leans = push_lean_table(gains, pushes.push_impulses, pushes.push_times)
     goal = shape.radii(options.goal_position_extent)
     out = []
     for scale in sorted(brk.scales, reverse=True):

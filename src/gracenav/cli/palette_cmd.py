@@ -164,12 +164,10 @@ def run_verify(args: argparse.Namespace) -> int:
     opts = pal.options
     leans = None
     if any(p.capture for p in pal.policies):
-        from gracenav.policies import push_lean_table
+        from gracenav.policies import RegulatorOptions, push_lean_table
 
-        reg = opts.regulator
-        impulses = reg.push_impulses if reg is not None else (4.0, 8.0, 16.0, 28.0, 40.0)
-        times = reg.push_times if reg is not None else (0.0, 0.1, 0.2, 0.3)
-        leans = push_lean_table(pal.gains, impulses, times, params=plant)
+        pushes = opts.regulator or RegulatorOptions()  # the push table capture was built with
+        leans = push_lean_table(pal.gains, pushes.push_impulses, pushes.push_times, params=plant)
     for pol in pal.policies:
         if pol.capture:  # as built: push leans and the capture family's boundary points
             regulator = pol.primitive.name == REGULATOR_NAME
