@@ -331,6 +331,13 @@ class Fields:
             )
         return v
 
+    def boolean(self, key: str, default: Any = _MISSING) -> bool:
+        """``true`` or ``false`` (YAML booleans, not 0/1 or strings)."""
+        v = self.get(key, default)
+        if not isinstance(v, bool):
+            raise self.fail(f"'{self.path(key)}' must be true or false, got {show(v)}")
+        return v
+
     def string(self, key: str, default: Any = _MISSING, *, max_length: int = 200) -> str:
         """A non-empty, single-line string of at most ``max_length`` characters, without
         control characters (which would garble a terminal)."""

@@ -136,9 +136,15 @@ class EllipsoidalDomain:
             return float(w[-1] + c0) <= 1.0 + tol
         # Stationary points: (λ I − a) u = b with λ > max eigenvalue; |u| = 1.
         lo, hi = w[-1] + 1e-15, w[-1] + np.linalg.norm(b) + 1.0
-        for _ in range(200):
+        # Bisection until lo and hi are adjacent doubles (at most ~1100 halvings, in
+        # practice ~60); hi always has |u| <= 1, so the bound below stays an upper bound.
+        wl = [float(e) for e in w]
+        bl = [float(e) for e in bt]
+        for _ in range(2200):
             mid = 0.5 * (lo + hi)
-            if np.sum((bt / (mid - w)) ** 2) > 1.0:
+            if not lo < mid < hi:
+                break
+            if sum((bi / (mid - wi)) ** 2 for bi, wi in zip(bl, wl, strict=True)) > 1.0:
                 lo = mid
             else:
                 hi = mid

@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 from gracenav.domains import EllipsoidalDomain
 from gracenav.errors import ConfigError, PlanningError
 from gracenav.graph import PreparesGraph
-from gracenav.library import PolicyLibrary
+from gracenav.library import PolicyLibrary, quarter_turn
 from gracenav.params import BallbotParams
 from gracenav.planning import CostCriterion, PolicyTree, plan_tree
 from gracenav.policies import MotionPolicy, PrimitiveKind, instantiated_reference
@@ -57,6 +57,7 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
 
 
 class EventReason(enum.Enum):
@@ -434,7 +435,11 @@ class HybridController:
         self.params = params if params is not None else self.palette.params
         self._adjacency = graph.csc(self.criterion.value)
         self._trees: dict[int, PolicyTree] = {}
-        self._terminals: dict[tuple[float, ...], tuple[TerminalPolicy, ...]] = {}
+        # Terminal regulators depend on the library and the goal only: shared by every
+        # controller on the same library (a scenario's runs, a campaign's trials).
+        self._terminals: dict[tuple[float, ...], tuple[TerminalPolicy, ...]] = (
+            library._cache.setdefault("terminal_policies", {})
+        )
         self.tree_seconds: list[float] = []
 
     # -- planning ------------------------------------------------------------------
@@ -472,10 +477,10 @@ class HybridController:
         # trim end at the same state) the shortest, so a task does not end on a hold
         # longer than it needs.
         order = np.lexsort((self.library.durations[trims], np.linalg.norm(ends - g, axis=1)))
-        for i in trims[order][:64]:
-            if self.library.policy(int(i)).goal_domain.contains(g):
-                candidates.append(int(i))
-                break
+        near = trims[order][:64]
+        inside = np.flatnonzero(self._goal_domains_contain(near, g))
+        if inside.size:
+            candidates.append(int(near[inside[0]]))
         at_rest = bool(np.all(g[2:] == 0.0))
         exact = bool(candidates) and bool(
             np.linalg.norm(self.library.end_state[candidates[0]] - g) <= _ON_LATTICE
@@ -502,6 +507,27 @@ class HybridController:
             f"goal ({where}) is outside coverage: a moving goal must be a cruise trim of the "
             "library (on the instantiation lattice, at a trim velocity, away from obstacles)"
         )
+
+    def _goal_domains_contain(self, rows: IntArray, g: FloatArray) -> BoolArray:
+        """Whether G of each library row in ``rows`` contains the position state ``g``:
+        ``g`` taken into each policy's own frame and tested against its G there (the
+        same ellipsoid as the world-frame G, rotated by a quarter turn), vectorised."""
+        lib = self.library
+        out = np.zeros(rows.shape, dtype=bool)
+        for p in np.unique(lib.palette_index[rows]):
+            sel = np.flatnonzero(lib.palette_index[rows] == p)
+            pol = self.palette.policies[int(p)]
+            local = pol.domain(pol.duration)
+            r = rows[sel]
+            q = np.empty((r.size, 4))
+            for k in range(4):  # world -> policy frame: rotate by -k quarter turns
+                m = lib.orientation[r] == k
+                if np.any(m):
+                    rt = quarter_turn(k).T
+                    q[m, :2] = (g[:2] - lib.start_xy[r[m]]) @ rt.T
+                    q[m, 2:] = g[2:] @ rt.T
+            out[sel] = local.contains(q)
+        return out
 
     def _terminal(self, goal: ArrayLike, goal_id: int) -> TerminalPolicy | None:
         """The terminal regulator a task toward ``goal`` ends with, if ``goal_id`` is the

@@ -9,6 +9,8 @@ A scenario file (YAML) has these keys (SI units; positions in m, velocities in m
     # map: {ros_map: lab.yaml}              # ... or a ROS map_server file, relative to this file
     robot: {footprint_radius: 0.2}          # optional
     planner: {cost: time, max_halvings: 1}  # optional; cost: time | distance
+    # planner: {kind: decoupled}            # the plan-then-track baseline (gracenav.baseline)
+    # planner: {resume_from_balancing: false, seed: 0}  # the paper's recovery; library seed
     task:                                   # required
       kind: point_to_point                  # goal and starts: [x, y, xdot, ydot]
       goal: [2, 2, 0, 0]
@@ -51,14 +53,20 @@ from gracenav.params import BallbotParams
 from gracenav.simulate import Disturbance, Drag, Push, SimulationOptions
 
 __all__ = [
+    "PLANNERS",
+    "PreparedLibrary",
     "RunSummary",
     "Scenario",
     "ScenarioResult",
     "apply_plant_factors",
     "check_scenario",
+    "check_task",
     "estimate_instantiations",
+    "library_key",
     "load_scenario",
+    "load_scenario_map",
     "parse_scenario",
+    "prepare_library",
     "run_scenario",
     "summary_dict",
     "write_outputs",
@@ -97,6 +105,15 @@ class Scenario:
         Factors (dimensionless) of the simulated plant's parameters, by
         :class:`~gracenav.params.BallbotParams` field name, in file order; empty: the
         plant has the parameters it is given (see :func:`run_scenario`).
+    planner : {"gracenav", "decoupled"}
+        ``gracenav``: the verified policy library and hybrid controller; ``decoupled``:
+        the plan-then-track baseline of :mod:`gracenav.baseline`.
+    resume_from_balancing : bool
+        See :class:`~gracenav.execution.ExecutionOptions`; False is the paper's
+        behaviour (no unverified balancing-mode fallback).
+    library_seed : int
+        Seed of the library's coverage samples (``planner.seed``), apart from the
+        simulation's seed, so that trials with different noise share one library.
     """
 
     name: str
@@ -115,9 +132,14 @@ class Scenario:
     max_time: float
     source: str = "scenario"
     plant_factors: tuple[tuple[str, float], ...] = ()
+    planner: Literal["gracenav", "decoupled"] = "gracenav"
+    resume_from_balancing: bool = True
+    library_seed: int = 0
 
 
 _TOP = ("name", "map", "robot", "planner", "task", "disturbances", "simulation")
+PLANNERS = ("gracenav", "decoupled")
+"""Values of ``planner.kind``."""
 
 # -- limits ----------------------------------------------------------------------------
 # Every number of a scenario is checked against these before any heavy work, so that a
@@ -196,9 +218,12 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         "footprint_radius", 0.2, minimum=0.0, maximum=MAX_FOOTPRINT_M, unit="m"
     )
     planner = top.sub("planner", {})
-    planner.check_keys({"cost", "max_halvings"})
+    planner.check_keys({"kind", "cost", "max_halvings", "resume_from_balancing", "seed"})
+    planner_kind = planner.choice("kind", PLANNERS, "gracenav")
     cost = planner.choice("cost", ("time", "distance"), "time")
     halvings = planner.integer("max_halvings", 1, maximum=20)
+    resume = planner.boolean("resume_from_balancing", True)
+    library_seed = planner.integer("seed", 0, maximum=2**32 - 1)
     sim = top.sub("simulation", {})
     sim.check_keys({"plant", "seed", "position_noise_std", "max_time", "plant_params"})
     plant = sim.choice("plant", ("model3d", "mujoco"), "model3d")
@@ -282,6 +307,9 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         max_time=max_time,
         source=source,
         plant_factors=plant_factors,
+        planner=planner_kind,  # type: ignore[arg-type]
+        resume_from_balancing=resume,
+        library_seed=library_seed,
     )
 
 
@@ -483,14 +511,115 @@ class ScenarioResult:
     """The simulated plant's parameters (None: the palette's)."""
 
 
+@dataclass(frozen=True)
+class PreparedLibrary:
+    """A scenario's map, policy library and prepares graph, built once and shared by
+    runs that differ only in their task, disturbances or simulation (campaign trials).
+
+    Attributes
+    ----------
+    key : str
+        What the library depends on: the palette's key, the map, the footprint, the
+        halving limit and the library seed (:func:`library_key`).
+    world_map, library, graph
+    seconds : float
+        Wall time of building the library and the graph (s).
+    """
+
+    key: str
+    world_map: Any = field(repr=False)
+    library: Any = field(repr=False)
+    graph: Any = field(repr=False)
+    seconds: float
+
+
+def library_key(scenario: Scenario, palette: Any) -> str:
+    """What a scenario's library depends on, as a string (inputs only, no computed
+    float): palette key, map source, footprint, halving limit and library seed."""
+    src = scenario.map_source
+    where = json.dumps(src, sort_keys=True) if isinstance(src, dict) else str(src)
+    return json.dumps(
+        [
+            palette.key,
+            where,
+            repr(scenario.footprint_radius),
+            scenario.max_halvings,
+            scenario.library_seed,
+        ]
+    )
+
+
+def load_scenario_map(scenario: Scenario) -> Any:
+    """The scenario's map; an inline map's error names the scenario and the key path
+    under ``map``.
+
+    Raises
+    ------
+    MapError
+    """
+    from gracenav.errors import MapError
+    from gracenav.world import load_map
+    from gracenav.world.occupancy import INLINE
+
+    try:
+        return load_map(scenario.map_source)
+    except MapError as exc:
+        if not isinstance(scenario.map_source, dict):
+            raise
+        msg = str(exc)
+        head = f"{INLINE}: '"
+        if msg.startswith(head):
+            where = "'map." + msg[len(head) :]
+        else:
+            where = msg.replace(INLINE, "'map'", 1)
+        raise MapError(f"{scenario.source}: {where}") from None
+
+
+def prepare_library(scenario: Scenario, palette: Any | None = None) -> PreparedLibrary:
+    """Check the scenario and build its library and graph.
+
+    Raises
+    ------
+    ConfigError, MapError, PlanningError
+        From the map and :func:`check_scenario`, before the library is built.
+    """
+    from gracenav.graph import build_graph
+    from gracenav.library import build_library
+    from gracenav.palette import load_palette
+
+    palette = palette if palette is not None else load_palette()
+    world_map = load_scenario_map(scenario)
+    check_scenario(scenario, world_map, palette)
+    t0 = time.perf_counter()
+    library = build_library(
+        palette,
+        world_map,
+        footprint_radius=scenario.footprint_radius,
+        max_halvings=scenario.max_halvings,
+        seed=scenario.library_seed,
+    )
+    graph = build_graph(library)
+    return PreparedLibrary(
+        key=library_key(scenario, palette),
+        world_map=world_map,
+        library=library,
+        graph=graph,
+        seconds=time.perf_counter() - t0,
+    )
+
+
 def run_scenario(
     scenario: Scenario,
     *,
     palette: Any | None = None,
     params: BallbotParams | None = None,
     progress: Callable[[int, int], None] | None = None,
+    prepared: PreparedLibrary | None = None,
 ) -> ScenarioResult:
     """Build the library on the scenario's map and run every start of its task.
+
+    A scenario with ``planner.kind: decoupled`` runs the plan-then-track baseline
+    instead (:func:`gracenav.baseline.run_decoupled`, no library).
 
     Parameters
     ----------
@@ -507,54 +636,39 @@ def run_scenario(
         position states (the plant's) differ from it by the ratio of the radii.
     progress : callable(done, total), optional
         Called after each run.
+    prepared : PreparedLibrary, optional
+        The library of an earlier :func:`prepare_library` call for the same map,
+        footprint, halvings, library seed and palette (checked by its key); default:
+        built here.
 
     Raises
     ------
     ConfigError, PlanningError
         From :func:`check_scenario`, before the library is built.
+    ValueError
+        ``prepared`` was built for another map, footprint, palette or library seed.
     """
-    from gracenav.errors import MapError
-    from gracenav.execution import ExecutionOptions, HybridController
-    from gracenav.graph import build_graph
-    from gracenav.library import build_library
+    from gracenav.execution import HybridController
     from gracenav.palette import load_palette
     from gracenav.simulate import state_from_position
-    from gracenav.world import load_map
-    from gracenav.world.occupancy import INLINE
 
     palette = palette if palette is not None else load_palette()
+    if scenario.planner == "decoupled":
+        from gracenav.baseline import run_decoupled
+
+        return run_decoupled(scenario, palette=palette, params=params, progress=progress)
     plant_params = apply_plant_factors(scenario, params if params is not None else palette.params)
-    try:
-        world_map = load_map(scenario.map_source)
-    except MapError as exc:
-        if not isinstance(scenario.map_source, dict):
-            raise
-        # An inline map: name the scenario file and the key path under 'map'.
-        msg = str(exc)
-        head = f"{INLINE}: '"
-        if msg.startswith(head):
-            where = "'map." + msg[len(head) :]
-        else:
-            where = msg.replace(INLINE, "'map'", 1)
-        raise MapError(f"{scenario.source}: {where}") from None
-    check_scenario(scenario, world_map, palette)
-    t0 = time.perf_counter()
-    library = build_library(
-        palette,
-        world_map,
-        footprint_radius=scenario.footprint_radius,
-        max_halvings=scenario.max_halvings,
-        seed=scenario.seed,
-    )
-    graph = build_graph(library)
-    lib_seconds = time.perf_counter() - t0
-    options = ExecutionOptions(
-        plant=scenario.plant,
-        max_time=scenario.max_time,
-        simulation=SimulationOptions(
-            position_noise_std=scenario.position_noise_std, seed=scenario.seed
-        ),
-    )
+    if prepared is None:
+        prepared = prepare_library(scenario, palette)
+    elif prepared.key != library_key(scenario, palette):
+        raise ValueError(
+            "prepared library was built for another map, footprint, halving limit, library "
+            "seed or palette than this scenario's"
+        )
+    else:
+        check_scenario(scenario, prepared.world_map, palette)
+    world_map, library, graph = prepared.world_map, prepared.library, prepared.graph
+    options = _execution_options(scenario)
     radius = palette.params.ball_radius  # the controller's: the robot starts where it believes
     probe = HybridController(library, graph, criterion=scenario.cost, params=plant_params)
     _check_task(scenario, probe, options)
@@ -581,11 +695,43 @@ def run_scenario(
         library_size=len(library),
         graph_edges=graph.num_edges,
         coverage=float(library.coverage),
-        library_seconds=lib_seconds,
+        library_seconds=prepared.seconds,
         world_map=world_map,
         library=library,
         plant_params=plant_params,
     )
+
+
+def _execution_options(scenario: Scenario) -> Any:
+    from gracenav.execution import ExecutionOptions
+
+    return ExecutionOptions(
+        plant=scenario.plant,
+        max_time=scenario.max_time,
+        simulation=SimulationOptions(
+            position_noise_std=scenario.position_noise_std, seed=scenario.seed
+        ),
+        resume_from_balancing=scenario.resume_from_balancing,
+    )
+
+
+def check_task(scenario: Scenario, prepared: PreparedLibrary, palette: Any | None = None) -> None:
+    """Check that every goal and every start of the scenario's task is possible with the
+    library ``prepared`` (as :func:`run_scenario` does before its first run).
+
+    Raises
+    ------
+    PlanningError
+        Naming the key of the first impossible goal or start and why.
+    """
+    from gracenav.execution import HybridController
+    from gracenav.palette import load_palette
+
+    palette = palette if palette is not None else load_palette()
+    hc = HybridController(
+        prepared.library, prepared.graph, criterion=scenario.cost, params=palette.params
+    )
+    _check_task(scenario, hc, _execution_options(scenario))
 
 
 def _check_task(scenario: Scenario, hc: Any, options: Any) -> None:
