@@ -106,7 +106,7 @@ def test_resume_equals_uninterrupted_and_refuses_other_file(tmp_path: Path) -> N
     assert seen == [2]  # nothing left to run: the appended line reads back
     assert json.dumps(again, sort_keys=True) == json.dumps(full, sort_keys=True)
     other = load_campaign(_tiny(tmp_path, TINY.replace("seed: 3", "seed: 4")))
-    with pytest.raises(OutputError, match="different campaign file"):
+    with pytest.raises(OutputError, match="different campaign"):
         run_campaign(other, tmp_path / "a", processes=1)
 
 
@@ -183,3 +183,141 @@ def test_params_reach_every_trial_and_a_resume_needs_the_same(tmp_path, capsys) 
     status = main(["campaign", str(camp), "--out", str(tmp_path / "q"), "--processes", "0"])
     err = capsys.readouterr().err
     assert status == 2 and err.startswith("gracenav: error: --processes") and err.count("\n") == 1
+
+
+def test_adding_a_planner_runs_only_its_trials(tmp_path: Path) -> None:
+    """The resume check ignores 'planners': a planner added to a finished campaign runs
+    its own trials only, on the same drawn inputs."""
+    c = load_campaign(_tiny(tmp_path))
+    first = run_campaign(c, tmp_path / "a", processes=1)
+    more = load_campaign(
+        _tiny(
+            tmp_path,
+            TINY.replace("trials: 2\n", "trials: 2\nplanners: [gracenav, gracenav_paper]\n"),
+        )
+    )
+    assert more.digest == c.digest
+    seen: list[int] = []
+    rows = run_campaign(more, tmp_path / "a", processes=1, progress=lambda d, n: seen.append(d))
+    assert seen == [3, 4]  # two new trials of four
+    assert rows[:2] == first
+    paper = rows[2:]
+    assert [r["planner"] for r in paper] == ["gracenav_paper"] * 2
+    for a, b in zip(first, paper, strict=True):  # same drawn inputs
+        assert a["impulse_ns"] == b["impulse_ns"] and a["sim_seed"] == b["sim_seed"]
+        assert b["fallbacks"] == 0  # no balancing mode in the paper's behaviour
+
+
+def test_pairs_are_possible_tasks_and_counted(tmp_path: Path) -> None:
+    """Random pairs are drawn again until the library can start at one and reach the
+    other; the count of draws is recorded and the trials then run without 'no_plan'."""
+    import yaml
+
+    data = yaml.safe_load(TINY)
+    data.pop("push")
+    data["pairs"] = {"clearance": 0.3, "min_distance": 1.0}
+    path = tmp_path / "pairs.yaml"
+    path.write_text(yaml.safe_dump(data))
+    c = load_campaign(path)
+    rows = run_campaign(c, tmp_path / "p", processes=1)
+    assert all(r["outcome"] != "no_plan" for r in rows)
+    assert all(1 <= r["pair_draws"] <= 1000 for r in rows)
+    assert all(
+        math.dist((r["start_x"], r["start_y"]), (r["goal_x"], r["goal_y"])) >= 1.0 for r in rows
+    )
+
+
+def test_out_holding_other_files_or_in_use_is_refused(tmp_path: Path) -> None:
+    from gracenav.campaign.runner import _locked
+
+    c = load_campaign(_tiny(tmp_path))
+    (tmp_path / "x").mkdir()
+    (tmp_path / "x" / "notes.txt").write_text("mine")
+    with pytest.raises(OutputError, match="holds files a campaign did not write"):
+        run_campaign(c, tmp_path / "x", processes=1)
+    (tmp_path / "y").mkdir()
+    with _locked(tmp_path / "y"), pytest.raises(OutputError, match="in use by another"):
+        run_campaign(c, tmp_path / "y", processes=1)
+
+
+def test_cli_publishes_results_as_a_unit(tmp_path: Path) -> None:
+    from gracenav.cli import main
+
+    out = tmp_path / "o"
+    assert main(["campaign", str(_tiny(tmp_path)), "--out", str(out), "--processes", "1"]) == 0
+    names = sorted(p.name for p in (out / "results").iterdir())
+    assert "results.csv" in names and "summary.json" in names and "table.md" in names
+    assert not list(out.glob(".results.*"))  # no staging left
+    # A second run (nothing left to run) replaces the results as a whole.
+    stale = out / "results" / "results.csv"
+    before = stale.stat().st_ino
+    assert main(["campaign", str(_tiny(tmp_path)), "--out", str(out), "--processes", "1"]) == 0
+    assert (out / "results" / "results.csv").stat().st_ino != before
+
+
+def test_unreachable_cluster_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pytest.importorskip("distributed")
+    import gracenav.campaign.runner as runner
+    from gracenav.cli import main
+
+    runner_timeout = runner.CLUSTER_TIMEOUT_S
+    runner.CLUSTER_TIMEOUT_S = 2.0
+    try:
+        code = main(
+            [
+                "campaign",
+                str(_tiny(tmp_path)),
+                "--out",
+                str(tmp_path / "o"),
+                "--cluster",
+                "tcp://127.0.0.1:1",
+            ]
+        )
+    finally:
+        runner.CLUSTER_TIMEOUT_S = runner_timeout
+    err = capsys.readouterr().err.strip()
+    assert code == 2
+    assert "--cluster tcp://127.0.0.1:1: cannot connect to a Dask scheduler" in err
+    assert "\n" not in err
+
+
+def test_dask_cluster_equals_local_and_survives_a_dead_worker(tmp_path: Path) -> None:
+    """A real local Dask cluster of two worker processes runs the campaign; one worker
+    is killed while it runs a trial. No trial is lost, the lost run is counted, and every
+    row equals the local run's."""
+    distributed = pytest.importorskip("distributed")
+    import os
+    import signal
+
+    text = TINY.replace("trials: 2", "trials: 6")
+    c = load_campaign(_tiny(tmp_path, text))
+    local = run_campaign(c, tmp_path / "local", processes=1)
+    with (
+        distributed.LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as cluster,
+        distributed.Client(cluster) as client,
+    ):
+        pids = client.run(os.getpid)
+        killed: list[str] = []
+
+        def kill_a_busy_worker(done: int, total: int) -> None:
+            if killed:
+                return
+            for addr, keys in client.processing().items():
+                if keys:
+                    os.kill(pids[addr], signal.SIGKILL)
+                    killed.append(addr)
+                    return
+
+        remote = run_campaign(
+            c, tmp_path / "remote", cluster=cluster.scheduler_address, progress=kill_a_busy_worker
+        )
+    assert killed, "no worker was busy when the first trial finished"
+    assert sum(r["worker_losses"] for r in remote) >= 1
+    strip = [{k: v for k, v in r.items() if k != "worker_losses"} for r in remote]
+    assert json.dumps(strip, sort_keys=True) == json.dumps(
+        [{k: v for k, v in r.items() if k != "worker_losses"} for r in local], sort_keys=True
+    )

@@ -197,6 +197,11 @@ OUTPUT_NAMES = frozenset(
         "lean.png",
         "animation.gif",
         "balance.png",
+        "results.csv",
+        "results.parquet",
+        "table.md",
+        "success_vs_impulse.png",
+        "time_to_goal.png",
     }
 )
 """Files gracenav writes into an output directory; an existing ``--out`` holding

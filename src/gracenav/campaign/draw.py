@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import functools
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -15,6 +16,9 @@ __all__ = ["MAX_PAIR_ATTEMPTS", "draw_trial", "trial_scenario"]
 
 MAX_PAIR_ATTEMPTS = 1000
 """Most start/goal pairs drawn for one trial before the campaign is refused."""
+
+PairCheck = Callable[[list[float], list[float]], bool]
+"""Whether a drawn (start, goal) pair is a possible task: ``(start, goal) -> bool``."""
 
 
 def _free_cells(scenario: dict[str, Any], clearance: float) -> np.ndarray:
@@ -38,8 +42,8 @@ def _free_cells_cached(map_json: str, clearance: float) -> np.ndarray:
 
 
 def _draw_pair(
-    campaign: Campaign, rng: np.random.Generator, index: int
-) -> tuple[list[float], list[float]]:
+    campaign: Campaign, rng: np.random.Generator, index: int, accept: PairCheck | None
+) -> tuple[list[float], list[float], int]:
     from gracenav.errors import ConfigError
 
     assert campaign.pairs is not None
@@ -50,21 +54,39 @@ def _draw_pair(
             f"{campaign.name}: 'pairs.clearance' {clearance:g} m: no free cell of the map "
             "is that far from every obstacle; lower it"
         )
-    for _ in range(MAX_PAIR_ATTEMPTS):
+    far = 0
+    for attempt in range(1, MAX_PAIR_ATTEMPTS + 1):
         a, b = cells[rng.integers(len(cells), size=2)]
-        if float(np.hypot(*(a - b))) >= min_dist:
-            return [float(a[0]), float(a[1])], [float(b[0]), float(b[1])]
+        if float(np.hypot(*(a - b))) < min_dist:
+            continue
+        far += 1
+        start, goal = [float(a[0]), float(a[1])], [float(b[0]), float(b[1])]
+        if accept is None or accept(start, goal):
+            return start, goal, attempt
+    if far == 0:
+        raise ConfigError(
+            f"{campaign.name}: trial {index}: no start/goal pair at least "
+            f"'pairs.min_distance' {min_dist:g} m apart in {MAX_PAIR_ATTEMPTS} draws; lower it"
+        )
     raise ConfigError(
-        f"{campaign.name}: trial {index}: no start/goal pair at least "
-        f"'pairs.min_distance' {min_dist:g} m apart in {MAX_PAIR_ATTEMPTS} draws; lower it"
+        f"{campaign.name}: trial {index}: none of {far} start/goal pairs drawn was a possible "
+        "task (start outside coverage or goal too close to an obstacle); raise "
+        "'pairs.clearance'"
     )
 
 
-def draw_trial(campaign: Campaign, index: int) -> dict[str, Any]:
+def draw_trial(campaign: Campaign, index: int, accept: PairCheck | None = None) -> dict[str, Any]:
     """The inputs of trial ``index``: a JSON-ready dict.
 
     Trial ``index`` uses child ``index`` of ``SeedSequence(campaign.seed)``, so its
-    inputs depend on nothing else (not the number of workers, not the order).
+    inputs depend on nothing else (not the number of workers, not the order, not the
+    planner). Random start/goal pairs are drawn again until ``accept`` takes one (at
+    most :data:`MAX_PAIR_ATTEMPTS` draws); ``pair_draws`` records how many it took.
+
+    Raises
+    ------
+    ConfigError
+        No acceptable pair in :data:`MAX_PAIR_ATTEMPTS` draws.
     """
     child = np.random.SeedSequence(campaign.seed).spawn(index + 1)[index]
     rng = np.random.default_rng(child)
@@ -76,17 +98,27 @@ def draw_trial(campaign: Campaign, index: int) -> dict[str, Any]:
         inputs["impulse_dir_rad"] = ang
         inputs["push_time_s"] = float(rng.uniform(*campaign.push_time))
     if campaign.pairs is not None:
-        start, goal = _draw_pair(campaign, rng, index)
-        inputs.update(start_x=start[0], start_y=start[1], goal_x=goal[0], goal_y=goal[1])
+        start, goal, draws = _draw_pair(campaign, rng, index, accept)
+        inputs.update(
+            start_x=start[0], start_y=start[1], goal_x=goal[0], goal_y=goal[1], pair_draws=draws
+        )
     inputs["noise_std_m"] = float(campaign.noise_std[int(rng.integers(len(campaign.noise_std)))])
     for name, lo, hi in campaign.plant_params:
         inputs[f"factor_{name}"] = float(rng.uniform(lo, hi))
     return inputs
 
 
-def trial_scenario(campaign: Campaign, inputs: dict[str, Any]) -> dict[str, Any]:
-    """The scenario document of one trial: the base with the drawn inputs applied."""
+def trial_scenario(
+    campaign: Campaign, inputs: dict[str, Any], planner: str = "gracenav"
+) -> dict[str, Any]:
+    """The scenario document of one trial: the base with the drawn inputs and the
+    planner (:data:`~gracenav.campaign.spec.PLANNERS`) applied."""
     doc = copy.deepcopy(campaign.scenario)
+    plan = dict(doc.get("planner") or {})
+    plan["kind"] = "decoupled" if planner == "decoupled" else "gracenav"
+    if planner == "gracenav_paper":
+        plan["resume_from_balancing"] = False
+    doc["planner"] = plan
     task = doc.get("task", {})
     if isinstance(task, dict) and "starts" in task and task["starts"]:
         task["starts"] = [task["starts"][0]]

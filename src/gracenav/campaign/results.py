@@ -34,12 +34,43 @@ def _rate(rows: list[dict[str, Any]]) -> dict[str, Any]:
     return {"n": n, "successes": k, "rate": k / n if n else None, "ci95": [lo, hi] if n else None}
 
 
+def _fmt(v: float | None, digits: int = 1) -> str:
+    return "–" if v is None else f"{v:.{digits}f}"
+
+
+def _median(values: list[float]) -> float | None:
+    """Median (the mean of the middle two for an even count); None if empty."""
+    v = sorted(values)
+    n = len(v)
+    if n == 0:
+        return None
+    return v[n // 2] if n % 2 else 0.5 * (v[n // 2 - 1] + v[n // 2])
+
+
+def _values(rows: list[dict[str, Any]], key: str) -> list[float]:
+    return [float(r[key]) for r in rows if r.get(key) is not None]
+
+
 def summarise(rows: list[dict[str, Any]], *, bins: int = 5) -> dict[str, Any]:
-    """Success rates with Wilson 95 % intervals per planner and per impulse bin."""
+    """Success rates with Wilson 95 % intervals per planner and per impulse bin, the
+    count of each outcome, and medians of the measures (time to goal over the trials
+    that reached it)."""
     out: dict[str, Any] = {"trials": len(rows), "planners": {}}
-    for planner in sorted({r["planner"] for r in rows}):
+    order = list(dict.fromkeys(r["planner"] for r in rows))
+    for planner in order:
         rs = [r for r in rows if r["planner"] == planner]
         entry = _rate(rs)
+        outcomes: dict[str, int] = {}
+        for r in rs:
+            outcomes[str(r.get("outcome"))] = outcomes.get(str(r.get("outcome")), 0) + 1
+        entry["outcomes"] = dict(sorted(outcomes.items()))
+        entry["median_time_s"] = _median(_values([r for r in rs if r["reached_goal"]], "time_s"))
+        lean = _values(rs, "max_lean_deg")
+        entry["median_max_lean_deg"] = _median(lean)
+        entry["max_lean_deg"] = max(lean) if lean else None
+        entry["median_max_jerk_mps3"] = _median(_values(rs, "max_jerk_mps3"))
+        entry["fallback_trials"] = sum(1 for r in rs if (r.get("fallbacks") or 0) > 0)
+        entry["worker_losses"] = sum(int(r.get("worker_losses") or 0) for r in rs)
         imp = [r["impulse_ns"] for r in rs if r.get("impulse_ns") is not None]
         if imp:
             lo, hi = min(imp), max(imp)
@@ -89,20 +120,17 @@ def write_results(rows: list[dict[str, Any]], directory: Path) -> list[Path]:
     (directory / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     written.append(directory / "summary.json")
     lines = [
-        "| planner | trials | success | 95 % CI | median time to goal (s) | max lean (°) |",
-        "|---|---|---|---|---|---|",
+        "| planner | trials | success | 95 % CI | median time to goal (s) | "
+        "max lean (°) median / max | max jerk (m/s³) median | contacts | no plan |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for planner, e in summary["planners"].items():
-        rs = [r for r in rows if r["planner"] == planner]
-        times = sorted(r["time_s"] for r in rs if r["reached_goal"])
-        med = f"{times[len(times) // 2]:.1f}" if times else "–"
-        lean = max(
-            (r["max_lean_deg"] for r in rs if r.get("max_lean_deg") is not None), default=math.nan
-        )
         ci = e["ci95"]
         lines.append(
-            f"| {planner} | {e['n']} | {e['rate']:.1%} | "
-            f"[{ci[0]:.1%}, {ci[1]:.1%}] | {med} | {lean:.1f} |"
+            f"| {planner} | {e['n']} | {e['rate']:.1%} | [{ci[0]:.1%}, {ci[1]:.1%}] | "
+            f"{_fmt(e['median_time_s'])} | {_fmt(e['median_max_lean_deg'])} / "
+            f"{_fmt(e['max_lean_deg'])} | {_fmt(e['median_max_jerk_mps3'], 0)} | "
+            f"{e['outcomes'].get('contact', 0)} | {e['outcomes'].get('no_plan', 0)} |"
         )
     (directory / "table.md").write_text("\n".join(lines) + "\n")
     written.append(directory / "table.md")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -11,9 +12,23 @@ from gracenav._validate import Fields, check_number
 
 __all__ = ["Campaign", "load_campaign", "parse_campaign"]
 
-_TOP = ("name", "scenario", "trials", "seed", "planners", "push", "noise", "plant_params", "pairs")
-PLANNERS = ("gracenav",)
-"""Planners a campaign may compare."""
+_TOP = (
+    "name",
+    "scenario",
+    "trials",
+    "seed",
+    "planners",
+    "push",
+    "noise",
+    "plant_params",
+    "pairs",
+    "cluster",
+)
+PLANNERS = ("gracenav", "gracenav_paper", "decoupled")
+"""Planners a campaign may compare: ``gracenav`` (verified policies, with the
+balancing-mode fallback, as ``gracenav run``), ``gracenav_paper`` (the same without the
+fallback, the paper's behaviour: ``planner.resume_from_balancing: false``) and
+``decoupled`` (the plan-then-track baseline, :mod:`gracenav.baseline`)."""
 MAX_TRIALS = 100_000
 
 
@@ -42,7 +57,13 @@ class Campaign:
         (clearance (m), minimum start-goal distance (m)) of random start/goal pairs
         drawn from the map's free space; None: the base scenario's start and goal.
     digest : str
-        SHA-256 of the campaign file's bytes (resume check).
+        SHA-256 of everything that decides a trial's inputs and its scenario (the
+        parsed file with the base scenario read in, without ``planners`` and
+        ``cluster``): the resume check. Adding a planner to a finished campaign runs
+        only the new planner's trials.
+    cluster : str or None
+        Address of a Dask scheduler to run on (``--cluster`` overrides it); None: a
+        local process pool.
     """
 
     name: str
@@ -56,6 +77,7 @@ class Campaign:
     plant_params: tuple[tuple[str, float, float], ...]
     digest: str
     pairs: tuple[float, float] | None = None
+    cluster: str | None = None
 
 
 def _range(f: Fields, key: str, *, minimum: float, maximum: float) -> tuple[float, float]:
@@ -72,9 +94,7 @@ def _range(f: Fields, key: str, *, minimum: float, maximum: float) -> tuple[floa
     return float(lo), float(hi)
 
 
-def parse_campaign(
-    data: Any, *, source: str = "campaign", base: Path | None = None, digest: str = ""
-) -> Campaign:
+def parse_campaign(data: Any, *, source: str = "campaign", base: Path | None = None) -> Campaign:
     """Check a campaign document and return a :class:`Campaign`.
 
     Raises
@@ -114,6 +134,9 @@ def parse_campaign(
     planners = f.get("planners", ["gracenav"])
     if not isinstance(planners, list) or not planners or any(p not in PLANNERS for p in planners):
         raise f.fail(f"'planners' must be a non-empty list of {', '.join(PLANNERS)}")
+    if len(set(planners)) != len(planners):
+        raise f.fail("'planners' lists a planner twice")
+    cluster = f.string("cluster") if "cluster" in f.data else None
     impulse: tuple[float, float] | None = None
     ptime = (0.0, 0.0)
     if "push" in f.data:
@@ -143,7 +166,11 @@ def parse_campaign(
             float(pf.number("clearance", minimum=0.0, maximum=100.0, unit="m")),
             float(pf.number("min_distance", 0.0, minimum=0.0, maximum=1.0e4, unit="m")),
         )
+    resolved = {k: v for k, v in f.data.items() if k not in ("planners", "cluster")}
+    resolved["scenario"] = scen_doc
+    digest = hashlib.sha256(json.dumps(resolved, sort_keys=True, default=str).encode()).hexdigest()
     return Campaign(
+        cluster=cluster,
         pairs=pairs,
         name=name,
         scenario=scen_doc,
@@ -163,8 +190,5 @@ def load_campaign(path: str | Path) -> Campaign:
     from gracenav._io import parse_yaml, read_text_file
 
     path = Path(path)
-    text = read_text_file(path, "campaign file")
-    data = parse_yaml(text, str(path))
-    return parse_campaign(
-        data, source=str(path), base=path.parent, digest=hashlib.sha256(text.encode()).hexdigest()
-    )
+    data = parse_yaml(read_text_file(path, "campaign file"), str(path))
+    return parse_campaign(data, source=str(path), base=path.parent)

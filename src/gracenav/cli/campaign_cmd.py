@@ -17,10 +17,15 @@ def register(sub: Any) -> None:
         "campaign",
         help="run a campaign (YAML): many trials of a scenario with drawn pushes, noise, plants",
         description=(
-            "Run every trial of a campaign on a local process pool and write DIR/trials.jsonl "
-            "(one line per finished trial: re-running the same command resumes), "
-            "DIR/results.csv, DIR/results.parquet (with pyarrow), DIR/summary.json (success "
-            "rates with Wilson 95 %% intervals per planner and impulse bin) and DIR/table.md."
+            "Run every trial of a campaign on a local process pool (or a Dask cluster) and "
+            "write DIR/trials.jsonl, one line per finished trial: re-running the same "
+            "command resumes, and adding a planner to the file runs only its trials. When "
+            "all trials are done, DIR/results/ is written as a unit: results.csv, "
+            "results.parquet (with pyarrow), summary.json (success rates with Wilson 95 %% "
+            "intervals per planner and impulse bin, outcomes, medians), table.md and PNG "
+            "figures. Planners: gracenav (verified policies with the balancing-mode "
+            "fallback), gracenav_paper (without it, as in the paper), decoupled (A* path, "
+            "smoothed and timed, tracked by the same controllers)."
         ),
     )
     c.add_argument("campaign", type=Path, help="campaign YAML file")
@@ -31,12 +36,22 @@ def register(sub: Any) -> None:
         default=None,
         help="worker processes (default: the number of cores)",
     )
+    c.add_argument(
+        "--cluster",
+        metavar="ADDRESS",
+        default=None,
+        help=(
+            "run the trials on the Dask scheduler at ADDRESS (e.g. tcp://10.0.0.5:8786; "
+            "overrides the file's 'cluster'); needs pip install 'gracenav[cluster]'"
+        ),
+    )
     add_params_argument(c)
     c.set_defaults(func=run_campaign_cmd)
 
 
 def run_campaign_cmd(args: argparse.Namespace) -> int:
     """Run ``gracenav campaign``."""
+    from gracenav._io import OutputDir
     from gracenav._progress import Progress
     from gracenav.campaign import load_campaign, run_campaign
     from gracenav.campaign.results import write_results
@@ -55,8 +70,14 @@ def run_campaign_cmd(args: argparse.Namespace) -> int:
             last[0] = done
 
         rows = run_campaign(
-            campaign, args.out, processes=args.processes, params=params, progress=progress
+            campaign,
+            args.out,
+            processes=args.processes,
+            params=params,
+            progress=progress,
+            cluster=args.cluster,
         )
-    written = write_results(rows, args.out)
-    print(f"wrote {', '.join(str(p) for p in written)}")
+    with OutputDir(args.out / "results") as results:
+        names = [p.name for p in write_results(rows, results.staging)]
+    print(f"wrote {args.out / 'results'}: {', '.join(names)}")
     return 0
