@@ -205,7 +205,8 @@ def test_adding_a_planner_runs_only_its_trials(tmp_path: Path) -> None:
     assert [r["planner"] for r in paper] == ["gracenav_paper"] * 2
     for a, b in zip(first, paper, strict=True):  # same drawn inputs
         assert a["impulse_ns"] == b["impulse_ns"] and a["sim_seed"] == b["sim_seed"]
-        assert b["fallbacks"] == 0  # no balancing mode in the paper's behaviour
+        # Without the fallback, a trial that enters balancing mode stays there.
+        assert b["fallbacks"] == 0 or b["outcome"] != "goal_reached"
 
 
 def test_pairs_are_possible_tasks_and_counted(tmp_path: Path) -> None:

@@ -147,6 +147,9 @@ BAD = [
     ({"task": {"starts": "here"}}, "task.starts"),
     ({"robot": {"footprint_radius": "wide"}}, "robot.footprint_radius"),
     ({"planner": {"cost": "money"}}, "planner.cost"),
+    ({"planner": {"kind": "rrt"}}, "'planner.kind' must be one of gracenav, decoupled"),
+    ({"planner": {"resume_from_balancing": 0}}, "'planner.resume_from_balancing' must be true"),
+    ({"planner": {"seed": -1}}, "planner.seed"),
     ({"simulation": {"plant": "gazebo"}}, "simulation.plant"),
     ({"simulation": {"seed": 1.5}}, "simulation.seed"),
     ({"disturbances": [{"kind": "push", "time": 1.0}]}, "disturbances[0].impulse"),
@@ -267,3 +270,49 @@ def test_run_summary_contact_and_outcome() -> None:
     assert touched.outcome == "contact" and touched.to_dict()["outcome"] == "contact"
     with pytest.raises(ValueError, match="contact cannot have reached"):
         RunSummary(reached_goal=True, min_clearance_m=-0.01, contact=True, **fields)
+
+
+def test_max_jerk_leaves_out_only_the_push_ticks() -> None:
+    """The push's velocity step is left out of max_jerk_mps3 (two control periods on
+    each side), everything else stays: checked on a synthetic episode."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from gracenav.scenarios import _max_jerk
+    from gracenav.simulate import Push
+
+    dt = 1.0 / 1024.0
+    t = np.arange(0, 1024) * dt
+    jerk = np.full(t.size - 1, 3.0)
+    k = 512  # the push between ticks k and k + 1
+    jerk[k] = 9000.0  # the impulse
+    jerk[700] = 50.0  # a torque step later: the robot's own jerk
+    ep = SimpleNamespace(time=t, ball_jerk=lambda params: jerk)
+    push = Push(time=float(t[k] + 0.5 * dt), impulse=(5.0, 0.0))
+    assert _max_jerk(ep, (push,), None) == pytest.approx(50.0)
+    assert _max_jerk(ep, (), None) == pytest.approx(9000.0)
+
+
+def test_planner_keys_and_a_shared_library() -> None:
+    """planner.resume_from_balancing and planner.seed reach the run; a library prepared
+    once serves other runs on the same map (even with another simulation seed) and is
+    refused for another footprint."""
+    import dataclasses
+
+    from gracenav.scenarios import prepare_library, run_scenario
+
+    data = yaml.safe_load((SCENARIOS / "fig5_point_to_point.yaml").read_text())
+    data["planner"] = {**data.get("planner", {}), "resume_from_balancing": False, "seed": 7}
+    data["task"]["starts"] = data["task"]["starts"][:1]
+    sc = parse_scenario(data, source="s.yaml")
+    assert sc.resume_from_balancing is False and sc.library_seed == 7
+    assert sc.planner == "gracenav"
+    prepared = prepare_library(sc)
+    first = run_scenario(sc, prepared=prepared)
+    other = dataclasses.replace(sc, seed=123)
+    again = run_scenario(other, prepared=prepared)
+    assert again.library is first.library
+    assert again.runs[0].reached_goal and first.runs[0].reached_goal
+    with pytest.raises(ValueError, match="another map, footprint"):
+        run_scenario(dataclasses.replace(sc, footprint_radius=0.25), prepared=prepared)

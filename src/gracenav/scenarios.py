@@ -431,7 +431,8 @@ class RunSummary:
 
     Every quantity's name ends with its unit (``_s``, ``_m``, ``_mps``, ``_deg``, ``_nm``
     (N m), ``_mps3`` (m/s³), ``_ms``); ``final_error_m`` is None for surveillance (no
-    single goal).
+    single goal). ``max_jerk_mps3`` leaves out the ticks within two control periods of a
+    push (the impulse is a velocity step from outside).
 
     The simulated robot passes through obstacles (the plant has no contact model), so a
     run is judged on its footprint too: ``contact`` is true if the footprint overlapped
@@ -781,7 +782,7 @@ def _summarise(
         final_speed_mps=float(np.linalg.norm(p[-1, 2:])),
         max_lean_deg=float(np.rad2deg(np.max(np.abs(ep.lean)))),
         max_torque_nm=float(np.max(np.abs(ep.inputs))),
-        max_jerk_mps3=float(np.max(ep.ball_jerk(params))) if ep.time.size > 2 else 0.0,
+        max_jerk_mps3=_max_jerk(ep, sc.disturbances, params),
         switches=ep.switches,
         non_graceful_switches=ep.non_graceful_switches,
         max_graceful_torque_jump_nm=float(np.max(jumps)) if jumps.size else 0.0,
@@ -793,6 +794,26 @@ def _summarise(
         verified_recoveries=ep.verified_recoveries,
         balancing_s=ep.balancing_time,
     )
+
+
+_PUSH_JERK_WINDOW_S = 2.0 / 1024.0
+"""Jerk samples this close (s) to a push are left out of ``max_jerk_mps3``."""
+
+
+def _max_jerk(ep: Any, disturbances: Sequence[Disturbance], params: BallbotParams) -> float:
+    """Largest ball jerk (m/s³) of the run, leaving out the ticks of each push: an
+    impulse steps the velocity, an input from outside rather than the robot's motion
+    (its jerk is the impulse over a tick squared), which would hide every difference
+    between planners."""
+    if ep.time.size <= 2:
+        return 0.0
+    jerk = ep.ball_jerk(params)
+    mid = 0.5 * (ep.time[1:] + ep.time[:-1])
+    keep = np.ones(jerk.shape, dtype=bool)
+    for d in disturbances:
+        if isinstance(d, Push):
+            keep &= np.abs(mid - d.time) > _PUSH_JERK_WINDOW_S
+    return float(np.max(jerk[keep])) if np.any(keep) else 0.0
 
 
 def summary_dict(result: ScenarioResult) -> dict[str, Any]:
