@@ -30,6 +30,7 @@ from gracenav.library import PolicyLibrary, quarter_turn
 from gracenav.params import BallbotParams
 from gracenav.planning import CostCriterion, PolicyTree, plan_tree
 from gracenav.policies import MotionPolicy, PrimitiveKind, instantiated_reference
+from gracenav.replanning import ObstacleSensing, ObstacleTracker, ReplanEvent
 from gracenav.simulate import (
     BodyForce,
     Disturbance,
@@ -43,6 +44,7 @@ from gracenav.simulate import (
     position_state,
     simulate,
 )
+from gracenav.world.moving import MovingObstacle
 
 __all__ = [
     "TERMINAL",
@@ -74,6 +76,12 @@ class EventReason(enum.Enum):
     TERMINAL = "terminal"
     """The goal is off the lattice: a capture regulator at the goal takes over from a
     rest trim whose G lies in its S (the reference steps to the goal)."""
+    OBSTACLE = "obstacle"
+    """A known moving obstacle blocked the running policy: switched away mid-policy."""
+    BLOCKED = "blocked"
+    """No unblocked way to the goal: an unblocked rest trim holds the robot."""
+    RESUMED = "resumed"
+    """The way cleared while holding: the task goes on."""
 
     @property
     def graceful(self) -> bool:
@@ -93,6 +101,8 @@ class TaskStatus(enum.Enum):
     #: Consecutive policies ended without advancing time (e.g. every policy whose S
     #: contains the state leaves its D' at once): the task stops instead of looping.
     NO_PROGRESS = "no_progress"
+    BLOCKED = "blocked"
+    """Time ran out while moving obstacles blocked every way to the goal."""
 
 
 @dataclass(frozen=True)
@@ -140,6 +150,9 @@ class ExecutionOptions:
     resume_from_balancing : bool
         Resume the task from balancing mode once a start domain contains the state (a
         gracenav extension: the paper assumes 100 % coverage and stops the task).
+    sensing : ObstacleSensing
+        Range, period and margin of the moving-obstacle sensing (used only when a run
+        has moving obstacles; :mod:`gracenav.replanning`).
     simulation : SimulationOptions
         Integration substeps, sensor noise and the fall limit (a fall ends the task
         with :attr:`TaskStatus.FELL`).
@@ -152,6 +165,7 @@ class ExecutionOptions:
     balance_chunk: float = 0.125
     resume_from_balancing: bool = True
     simulation: SimulationOptions = field(default_factory=SimulationOptions)
+    sensing: ObstacleSensing = field(default_factory=ObstacleSensing)
 
     def __post_init__(self) -> None:
         if self.plant not in ("model3d", "mujoco"):
@@ -188,6 +202,12 @@ class Episode:
         The plant's ball radius (m): :attr:`position_state` is where the robot truly
         is, which differs from what the controller believes (its nominal radius) when
         the plant's radius is not the nominal one.
+    replans : tuple of ReplanEvent
+        Every repair of the tree for moving obstacles, with its reason and latency.
+    blocked_time : float
+        Time (s) spent holding because moving obstacles blocked every way to the goal.
+    moving_obstacles : tuple of MovingObstacle
+        The run's moving obstacles (their true motion), for checks and drawings.
     """
 
     time: FloatArray
@@ -200,6 +220,9 @@ class Episode:
     goals_reached: tuple[tuple[float, int], ...]
     tree_seconds: tuple[float, ...]
     radius: float
+    replans: tuple[ReplanEvent, ...] = ()
+    blocked_time: float = 0.0
+    moving_obstacles: tuple[MovingObstacle, ...] = ()
 
     @property
     def position_state(self) -> FloatArray:
@@ -588,13 +611,17 @@ class HybridController:
             self._trees[goal_policy] = tree
         return tree
 
-    def _recovery_point(self, p: FloatArray, tree: PolicyTree) -> FloatArray:
+    def _recovery_point(
+        self, p: FloatArray, tree: PolicyTree, dyn: ObstacleTracker | None = None
+    ) -> FloatArray:
         """Where balancing mode holds the robot: the start of the nearest rest trim of
         the library that reaches the goal and that the robot can be driven to without
         driving toward an obstacle: along the straight segment from the robot to it
         (sampled every map cell) the clearance stays at least the footprint plus
         :data:`_BALANCING_MARGIN`, or the robot's own clearance if that is smaller. The
-        current position if none of the :data:`_BALANCING_SEARCH` nearest qualifies."""
+        current position if none of the :data:`_BALANCING_SEARCH` nearest qualifies.
+        With moving obstacles (``dyn``), a point a known obstacle may reach within
+        :data:`gracenav.replanning.HOLD_HORIZON` is not a candidate either."""
         here = np.asarray(p[:2], dtype=float)
         rest = self.library.trim_indices(PrimitiveKind.REST)
         rest = rest[np.isfinite(tree.cost_to_go[rest]) | (rest == tree.goal)]
@@ -610,6 +637,8 @@ class HybridController:
         )
         step = float(wm.resolution)
         for q in xy[order]:
+            if dyn is not None and not dyn.hold_clear(q, _BALANCING_MARGIN):
+                continue
             n = max(2, int(np.ceil(np.linalg.norm(q - here) / step)) + 1)
             seg = here + np.linspace(0.0, 1.0, n)[:, None] * (q - here)
             if np.all(wm.clearance(seg[1:]) >= need):
@@ -643,6 +672,7 @@ class HybridController:
         loops: int = 1,
         disturbances: Sequence[Disturbance] = (),
         options: ExecutionOptions | None = None,
+        moving_obstacles: Sequence[MovingObstacle] = (),
     ) -> Episode:
         """Execute a task: reach ``goals`` in order, ``loops`` times (surveillance), or
         one goal once (point-to-point).
@@ -659,6 +689,12 @@ class HybridController:
         disturbances : sequence of Push, BodyForce, StateJump, Drag
             In episode time.
         options : ExecutionOptions, optional
+        moving_obstacles : sequence of MovingObstacle
+            Obstacles not in the map, which the controller learns of within its sensing
+            range (``options.sensing``): it then blocks the policies they may meet,
+            repairs the tree every sensing period, switches away from a policy that
+            becomes blocked while it runs, and holds an unblocked rest trim while no
+            way to the goal is free (:mod:`gracenav.replanning`).
 
         Raises
         ------
@@ -692,6 +728,19 @@ class HybridController:
                     break
             else:
                 tree = self.tree(goal_ids[0])
+        dyn = (
+            ObstacleTracker(self.library, self.graph, moving_obstacles, options.sensing)
+            if moving_obstacles
+            else None
+        )
+        holding = False
+        blocked_time = 0.0
+        if dyn is not None and current >= 0:
+            tree = dyn.update(0.0, p[:2], tree)
+            current = self.best_policy(p, tree)
+            if current < 0:
+                current = dyn.hold_policy(p)
+                holding = current >= 0
         sequence = goal_ids * loops
         terminal_seq = terminals * loops
         goal_states = [np.asarray(g, dtype=float) for g in goals] * loops
@@ -714,6 +763,7 @@ class HybridController:
         max_ticks = max(1, math.ceil(options.max_time / dt - 1e-9))
         stalled = 0  # consecutive policies that ended at their first tick
         status = TaskStatus.TIMEOUT
+        offset = 0  # ticks of the current policy already run (moving obstacles)
         while ticks < max_ticks:
             term = terminal_seq[k_goal]
             if current == TERMINAL and term is not None:
@@ -733,11 +783,16 @@ class HybridController:
                 # Regenerate the tree for the next goal while the last policy to the
                 # current goal runs (paper Sec. V-C).
                 self.tree(sequence[k_goal + 1])
-            n_seg = min(prim.num_ticks, max_ticks - ticks)
-            truncated = n_seg < prim.num_ticks
-            if truncated:  # max_time falls inside this policy: run up to it only
-                ref = Reference(ref.states[: n_seg + 1], ref.inputs[: n_seg + 1], ref.dt)
-                ref_pos, shapes = ref_pos[: n_seg + 1], shapes[: n_seg + 1]
+            remaining = prim.num_ticks - offset
+            n_seg = min(remaining, max_ticks - ticks)
+            truncated = n_seg < remaining
+            split = False  # the segment ends at the next look at the moving obstacles
+            if dyn is not None and dyn.ticks_to_next(t, dt) < n_seg:
+                n_seg, split, truncated = dyn.ticks_to_next(t, dt), True, False
+            if offset or n_seg < prim.num_ticks:  # run ticks offset .. offset + n_seg only
+                part = slice(offset, offset + n_seg + 1)
+                ref = Reference(ref.states[part], ref.inputs[part], ref.dt)
+                ref_pos, shapes = ref_pos[part], shapes[part]
             local, inst_idx = _segment_disturbances(disturbances, t, dt, n_seg, applied)
             res = simulate(
                 x,
@@ -757,18 +812,61 @@ class HybridController:
             record.add(t, res, current, ref_pos)
             t += last * dt
             ticks += last
+            if holding:
+                blocked_time += last * dt
             x = res.states[-1].copy()
             p = position_state(x, r)
             if res.stop_reason is StopReason.FELL:
                 status = TaskStatus.FELL
                 break
             if truncated and res.stop_reason is StopReason.COMPLETED:
-                status = TaskStatus.TIMEOUT
+                status = TaskStatus.BLOCKED if holding else TaskStatus.TIMEOUT
                 break
             stalled = stalled + 1 if last == 0 else 0
             if stalled > _MAX_STALLED_SEGMENTS:
                 status = TaskStatus.NO_PROGRESS
                 break
+            if dyn is not None:
+                if dyn.due(t):
+                    tree = dyn.update(t, p[:2], tree)
+                if holding:
+                    free_row = self.best_policy(p, tree)
+                    if free_row >= 0:  # the way is free again
+                        events.append(SwitchEvent(t, current, free_row, EventReason.RESUMED, ticks))
+                        current, offset, holding = free_row, 0, False
+                        continue
+                if split and res.stop_reason is StopReason.COMPLETED:
+                    offset += last
+                    blocked_now = (
+                        dyn.disc_blocked(
+                            term.goal_xy,
+                            float(term.policy.outer_extents(0.0)[0]),
+                            term.policy.duration,
+                        )
+                        if current == TERMINAL and term is not None
+                        else dyn.is_blocked(current)
+                        or (holding and not dyn.hold_row_clear(current))
+                    )
+                    if not blocked_now:
+                        continue  # the same policy goes on
+                    offset = 0
+                    nxt = self.best_policy(p, tree)
+                    if nxt >= 0:
+                        events.append(SwitchEvent(t, current, nxt, EventReason.OBSTACLE, ticks))
+                        current, holding = nxt, False
+                        continue
+                    wait_row = dyn.hold_policy(p)
+                    if wait_row >= 0:
+                        events.append(SwitchEvent(t, current, wait_row, EventReason.BLOCKED, ticks))
+                        current, holding = wait_row, True
+                        continue
+                    # Nothing unblocked contains the state: balancing mode below.
+                offset = 0
+                if holding and res.stop_reason is StopReason.COMPLETED:
+                    wait_row = dyn.hold_policy(p)
+                    if wait_row >= 0:  # still blocked: hold on (no new event)
+                        current = wait_row
+                        continue
             g = goal_states[k_goal]
             near_goal = bool(
                 np.linalg.norm(p[:2] - g[:2]) <= options.goal_tolerance
@@ -800,6 +898,8 @@ class HybridController:
                 if k_goal + 1 < len(sequence):
                     k_goal += 1
                     tree = self.tree(sequence[k_goal])
+                    if dyn is not None:
+                        tree = dyn.retarget(tree)
                     reason = EventReason.NEW_GOAL
                     nxt = int(tree.next_policy[current])
                     if nxt < 0 or not self.library.policy(nxt).start_domain.contains(p):
@@ -820,15 +920,21 @@ class HybridController:
                     nxt = self.best_policy(p, tree)
                     reason = EventReason.NOT_IN_GOAL
             if ticks >= max_ticks:
-                status = TaskStatus.TIMEOUT
+                status = TaskStatus.BLOCKED if holding else TaskStatus.TIMEOUT
                 break
+            if nxt == -1 and dyn is not None and np.any(dyn.blocked):
+                wait_row = dyn.hold_policy(p)
+                if wait_row >= 0:  # obstacles block the way: wait on a free rest trim
+                    events.append(SwitchEvent(t, current, wait_row, EventReason.BLOCKED, ticks))
+                    current, holding = wait_row, True
+                    continue
             if nxt == -1:
                 # Balancing mode: station keeping at the nearest rest-trim start of the
                 # library from which the goal is reachable, checking every chunk whether
                 # some policy's S now contains the state; the task stops if none does
                 # within ``balance_time``.
                 events.append(SwitchEvent(t, current, -1, EventReason.BALANCING, ticks))
-                hold_xy = self._recovery_point(p, tree)
+                hold_xy = self._recovery_point(p, tree, dyn)
                 waited = 0.0
                 nxt = -1
                 fell = False
@@ -864,6 +970,10 @@ class HybridController:
                     if bal.stop_reason is StopReason.FELL:
                         fell = True
                         break
+                    if dyn is not None and dyn.due(t):
+                        tree = dyn.update(t, p[:2], tree)
+                        if not dyn.hold_clear(hold_xy, _BALANCING_MARGIN):
+                            hold_xy = self._recovery_point(p, tree, dyn)
                     if options.resume_from_balancing and not _disturbed(disturbances, t):
                         nxt = self.best_policy(p, tree)
                         if nxt >= 0:
@@ -895,4 +1005,7 @@ class HybridController:
             goals_reached=tuple(goals_reached),
             tree_seconds=tuple(self.tree_seconds),
             radius=self.params.ball_radius,
+            replans=tuple(dyn.replans) if dyn is not None else (),
+            blocked_time=blocked_time,
+            moving_obstacles=tuple(moving_obstacles),
         )

@@ -7,7 +7,7 @@ A scenario file (YAML) has these keys (SI units; positions in m, velocities in m
       bounds: [[-1, -1], [3.5, 3]]
       obstacles: [{rectangle: {min: [0.75, 1.0], max: [1.25, 1.5]}}]
     # map: {ros_map: lab.yaml}              # ... or a ROS map_server file, relative to this file
-    robot: {footprint_radius: 0.2}          # optional
+    robot: {footprint_radius: 0.2, sensing_range: 3.0}  # optional (m)
     planner: {cost: time, max_halvings: 1}  # optional; cost: time | distance
     # planner: {kind: decoupled}            # the plan-then-track baseline (gracenav.baseline)
     # planner: {resume_from_balancing: false, seed: 0}  # the paper's recovery; library seed
@@ -16,6 +16,9 @@ A scenario file (YAML) has these keys (SI units; positions in m, velocities in m
       goal: [2, 2, 0, 0]
       starts: [[0, 0, 0, 0], [0, 2, 0, 0]]
     # task: {kind: surveillance, start: [...], goals: [[...], ...], loops: 5}
+    moving_obstacles:                       # optional: people, carts (discs), unknown in advance
+      - {name: person, radius: 0.25, path: [[3, 0.5], [3, 2.5]], speed: 1.0, appear: 2}
+      - {name: cart, radius: 0.35, path: [[5, 1.5]], appear: 3, leave: 8}   # stands 5 s
     disturbances:                           # optional
       - {kind: push, time: 3.0, impulse: [10, 0]}                         # N s on the body
       - {kind: drag, start_time: 3, end_time: 5, velocity: [0, -0.3]}     # held and moved
@@ -50,7 +53,9 @@ from gracenav._io import atomic_write_text, load_document
 from gracenav._validate import Fields, require_mapping
 from gracenav.errors import ConfigError
 from gracenav.params import BallbotParams
+from gracenav.replanning import ObstacleSensing
 from gracenav.simulate import Disturbance, Drag, Push, SimulationOptions
+from gracenav.world.moving import MovingObstacle, moving_clearance
 
 __all__ = [
     "PLANNERS",
@@ -114,6 +119,10 @@ class Scenario:
     library_seed : int
         Seed of the library's coverage samples (``planner.seed``), apart from the
         simulation's seed, so that trials with different noise share one library.
+    moving_obstacles : tuple of MovingObstacle
+        Obstacles not in the map, learned within ``sensing_range`` (m) of the robot.
+    sensing_range : float
+        (m), ``robot.sensing_range``.
     """
 
     name: str
@@ -135,9 +144,20 @@ class Scenario:
     planner: Literal["gracenav", "decoupled"] = "gracenav"
     resume_from_balancing: bool = True
     library_seed: int = 0
+    moving_obstacles: tuple[MovingObstacle, ...] = ()
+    sensing_range: float = 3.0
 
 
-_TOP = ("name", "map", "robot", "planner", "task", "disturbances", "simulation")
+_TOP = (
+    "name",
+    "map",
+    "robot",
+    "planner",
+    "task",
+    "disturbances",
+    "moving_obstacles",
+    "simulation",
+)
 PLANNERS = ("gracenav", "decoupled")
 """Values of ``planner.kind``."""
 
@@ -153,6 +173,10 @@ MAX_LOOPS = 10_000
 """Most surveillance loops."""
 MAX_DISTURBANCES = 100
 """Most disturbances of one scenario."""
+MAX_MOVING_OBSTACLES = 50
+"""Most moving obstacles of one scenario."""
+MAX_PATH_POINTS = 100
+"""Most waypoints of one moving obstacle's path."""
 MAX_SIMULATED_TIME_S = 1800.0
 """Budget of simulated time over all runs, max_time × starts (s): 1.8 M control ticks,
 about 250 MB of recorded history and a few minutes of computing."""
@@ -213,9 +237,12 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
     else:
         map_source = dict(mp.data)  # checked by the map loader (size limit included)
     robot = top.sub("robot", {})
-    robot.check_keys({"footprint_radius"})
+    robot.check_keys({"footprint_radius", "sensing_range"})
     footprint = robot.number(
         "footprint_radius", 0.2, minimum=0.0, maximum=MAX_FOOTPRINT_M, unit="m"
+    )
+    sensing_range = robot.number(
+        "sensing_range", ObstacleSensing().range, positive=True, maximum=100.0, unit="m"
     )
     planner = top.sub("planner", {})
     planner.check_keys({"kind", "cost", "max_halvings", "resume_from_balancing", "seed"})
@@ -290,7 +317,10 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
                 )
             v = r.vector("velocity", 2, bound=MAX_DRAG_SPEED_MPS, what="[vx, vy] (m/s)")
             disturbances.append(Drag(start_time=t0, end_time=t1, velocity=(v[0], v[1])))
+    moving = _moving_obstacles(top, max_time)
     return Scenario(
+        moving_obstacles=moving,
+        sensing_range=sensing_range,
         name=name,
         map_source=map_source,
         footprint_radius=footprint,
@@ -311,6 +341,47 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         resume_from_balancing=resume,
         library_seed=library_seed,
     )
+
+
+def _moving_obstacles(top: Fields, max_time: float) -> tuple[MovingObstacle, ...]:
+    raw = top.items(
+        "moving_obstacles",
+        [],
+        max_len=MAX_MOVING_OBSTACLES,
+        what="{radius, path, speed, appear, leave}",
+    )
+    out = []
+    for i, d in enumerate(raw):
+        r = Fields(d, f"moving_obstacles[{i}]", top.source)
+        r.check_keys({"name", "radius", "path", "speed", "appear", "leave"})
+        name = r.string("name", f"obstacle {i}")
+        radius = r.number("radius", positive=True, maximum=MAX_FOOTPRINT_M, unit="m")
+        path = r.points(
+            "path", min_len=1, max_len=MAX_PATH_POINTS, bound=MAX_COORDINATE, what="[x, y]"
+        )
+        speed = r.number("speed", 0.0, minimum=0.0, maximum=MAX_DRAG_SPEED_MPS, unit="m/s")
+        appear = r.number("appear", 0.0, minimum=0.0, unit="s")
+        leave = (
+            r.number("leave", math.inf, minimum=0.0, unit="s") if "leave" in r.data else math.inf
+        )
+        if not leave > appear:
+            raise r.fail(f"'{r.path('leave')}' {leave:g} s must come after appear ({appear:g} s)")
+        if appear >= max_time:
+            raise r.fail(
+                f"'{r.path('appear')}' {appear:g} s is not before simulation.max_time "
+                f"({max_time:g} s): the obstacle would never appear"
+            )
+        out.append(
+            MovingObstacle(
+                radius=radius,
+                path=tuple((float(x), float(y)) for x, y in path),
+                speed=speed,
+                appear=appear,
+                leave=leave,
+                name=name,
+            )
+        )
+    return tuple(out)
 
 
 def _plant_factors(sim: Fields) -> tuple[tuple[str, float], ...]:
@@ -443,6 +514,10 @@ class RunSummary:
     ``stop_reason`` otherwise. ``verified_recoveries`` counts switches after a domain
     exit straight into a policy whose start domain contains the state;
     ``balancing_s`` is the time spent in balancing mode, the unverified last resort.
+    With moving obstacles, the clearance and contact are measured against their true
+    positions too; ``replans`` counts the tree repairs (median and largest wall time in
+    ``replan_ms_median``, ``replan_ms_max``) and ``blocked_s`` the time spent holding
+    while no way to the goal was free.
     """
 
     start: tuple[float, ...]
@@ -465,6 +540,10 @@ class RunSummary:
     contact_time_s: float | None = None
     verified_recoveries: int = 0
     balancing_s: float = 0.0
+    replans: int = 0
+    replan_ms_median: float = 0.0
+    replan_ms_max: float = 0.0
+    blocked_s: float = 0.0
 
     def __post_init__(self) -> None:
         if self.contact and self.reached_goal:
@@ -684,6 +763,7 @@ def run_scenario(
             loops=scenario.loops,
             disturbances=scenario.disturbances,
             options=options,
+            moving_obstacles=scenario.moving_obstacles,
         )
         episodes.append(ep)
         runs.append(_summarise(ep, start, scenario, world_map, plant_params))
@@ -713,6 +793,7 @@ def _execution_options(scenario: Scenario) -> Any:
             position_noise_std=scenario.position_noise_std, seed=scenario.seed
         ),
         resume_from_balancing=scenario.resume_from_balancing,
+        sensing=ObstacleSensing(range=scenario.sensing_range),
     )
 
 
@@ -768,6 +849,10 @@ def _summarise(
     goal = np.asarray(sc.goals[-1] if sc.kind == "point_to_point" else sc.goals[0])
     jumps = ep.graceful_torque_jumps()
     clearance = world_map.clearance(p[:, :2]) - sc.footprint_radius
+    if sc.moving_obstacles:  # at their true positions, tick by tick
+        moving = moving_clearance(sc.moving_obstacles, p[:, :2], ep.time) - sc.footprint_radius
+        clearance = np.minimum(clearance, moving)
+    latencies = [1000.0 * e.latency_s for e in ep.replans]
     touching = np.flatnonzero(clearance < 0.0)
     contact = bool(touching.size)
     return RunSummary(
@@ -793,6 +878,10 @@ def _summarise(
         contact_time_s=float(ep.time[touching[0]]) if contact else None,
         verified_recoveries=ep.verified_recoveries,
         balancing_s=ep.balancing_time,
+        replans=len(ep.replans),
+        replan_ms_median=float(np.median(latencies)) if latencies else 0.0,
+        replan_ms_max=float(np.max(latencies)) if latencies else 0.0,
+        blocked_s=ep.blocked_time,
     )
 
 
@@ -865,13 +954,22 @@ def write_outputs(result: ScenarioResult, out: str | Path, *, animation: bool = 
     def name(i: int) -> str:
         return result.library.policy(i).name if i >= 0 else ""
 
-    ev = ["run,time,from,to,from_name,to_name,reason"]
+    ev = ["run,time,from,to,from_name,to_name,reason,latency_ms"]
     for k, ep in enumerate(result.episodes):
-        for e in ep.events:
-            ev.append(
+        lines = [
+            (
+                e.time,
+                0,
                 f"{k},{e.time:.6f},{e.from_policy},{e.to_policy},{name(e.from_policy)},"
-                f"{name(e.to_policy)},{e.reason.value}"
+                f"{name(e.to_policy)},{e.reason.value},",
             )
+            for e in ep.events
+        ]
+        lines += [  # replans: reason replan:<why>, and the wall time of the repair
+            (rp.time, 1, f"{k},{rp.time:.6f},,,,,replan:{rp.reason},{1000 * rp.latency_s:.3f}")
+            for rp in getattr(ep, "replans", ())
+        ]
+        ev += [line for _, _, line in sorted(lines, key=lambda v: (v[0], v[1]))]
     path = out / "events.csv"
     atomic_write_text(path, "\n".join(ev) + "\n")
     written.append(path)
