@@ -30,7 +30,7 @@ from gracenav.library import PolicyLibrary, quarter_turn
 from gracenav.params import BallbotParams
 from gracenav.planning import CostCriterion, PolicyTree, plan_tree
 from gracenav.policies import MotionPolicy, PrimitiveKind, instantiated_reference
-from gracenav.replanning import ObstacleSensing, ObstacleTracker, ReplanEvent
+from gracenav.replanning import HOLD_MARGIN, ObstacleSensing, ObstacleTracker, ReplanEvent
 from gracenav.simulate import (
     BodyForce,
     Disturbance,
@@ -205,7 +205,8 @@ class Episode:
     replans : tuple of ReplanEvent
         Every repair of the tree for moving obstacles, with its reason and latency.
     blocked_time : float
-        Time (s) spent holding because moving obstacles blocked every way to the goal.
+        Time (s) spent waiting (on a rest trim, or in balancing mode) while moving
+        obstacles blocked every way to the goal.
     moving_obstacles : tuple of MovingObstacle
         The run's moving obstacles (their true motion), for checks and drawings.
     """
@@ -620,15 +621,15 @@ class HybridController:
         (sampled every map cell) the clearance stays at least the footprint plus
         :data:`_BALANCING_MARGIN`, or the robot's own clearance if that is smaller. The
         current position if none of the :data:`_BALANCING_SEARCH` nearest qualifies.
-        With moving obstacles (``dyn``), a point a known obstacle may reach within
-        :data:`gracenav.replanning.HOLD_HORIZON` is not a candidate either."""
+        With moving obstacles (``dyn``), a point or a segment a known obstacle may reach
+        within :data:`gracenav.replanning.HOLD_HORIZON` is not a candidate either, and
+        when they block the way every unblocked rest trim is a candidate."""
         here = np.asarray(p[:2], dtype=float)
-        rest = self.library.trim_indices(PrimitiveKind.REST)
-        rest = rest[np.isfinite(tree.cost_to_go[rest]) | (rest == tree.goal)]
-        if rest.size == 0:
-            return here
-        xy = self.library.start_xy[rest]
-        order = np.argsort(np.linalg.norm(xy - here, axis=1), kind="stable")[:_BALANCING_SEARCH]
+        all_rest = self.library.trim_indices(PrimitiveKind.REST)
+        passes = [all_rest[np.isfinite(tree.cost_to_go[all_rest]) | (all_rest == tree.goal)]]
+        if dyn is not None and np.any(dyn.blocked):
+            # The way is blocked: any free rest trim will do to wait for it to clear.
+            passes.append(all_rest[~dyn.blocked[all_rest]])
         wm = self.library.world_map
         # A robot already nearer than that to an obstacle may not get any nearer.
         need = min(
@@ -636,13 +637,18 @@ class HybridController:
             float(wm.clearance(here[None, :])[0]),
         )
         step = float(wm.resolution)
-        for q in xy[order]:
-            if dyn is not None and not dyn.hold_clear(q, _BALANCING_MARGIN):
-                continue
-            n = max(2, int(np.ceil(np.linalg.norm(q - here) / step)) + 1)
-            seg = here + np.linspace(0.0, 1.0, n)[:, None] * (q - here)
-            if np.all(wm.clearance(seg[1:]) >= need):
-                return np.asarray(q, dtype=float)
+        for rest in passes:
+            xy = self.library.start_xy[rest]
+            if dyn is not None:  # only points clear of the obstacles' predicted motion
+                xy = xy[dyn.points_clear(xy, _BALANCING_MARGIN + HOLD_MARGIN)]
+            order = np.argsort(np.linalg.norm(xy - here, axis=1), kind="stable")
+            for q in xy[order[:_BALANCING_SEARCH]]:
+                n = max(2, int(np.ceil(np.linalg.norm(q - here) / step)) + 1)
+                seg = here + np.linspace(0.0, 1.0, n)[:, None] * (q - here)
+                if np.all(wm.clearance(seg[1:]) >= need) and (
+                    dyn is None or dyn.path_clear(here, seg[1:], _BALANCING_MARGIN + HOLD_MARGIN)
+                ):
+                    return np.asarray(q, dtype=float)
         return here
 
     def best_policy(self, p: ArrayLike, tree: PolicyTree) -> int:
@@ -938,12 +944,9 @@ class HybridController:
                 waited = 0.0
                 nxt = -1
                 fell = False
-                while waited < options.balance_time - 1e-9 and ticks < max_ticks:
-                    chunk = min(
-                        options.balance_chunk,
-                        options.balance_time - waited,
-                        (max_ticks - ticks) * dt,
-                    )
+                limit = options.balance_time
+                while waited < limit - 1e-9 and ticks < max_ticks:
+                    chunk = min(options.balance_chunk, limit - waited, (max_ticks - ticks) * dt)
                     hold = Reference.hold(hold_xy, chunk, params=self.gains.params)
                     local, inst_idx = _segment_disturbances(
                         disturbances, t, dt, hold.num_ticks, applied
@@ -965,6 +968,10 @@ class HybridController:
                     t += n * dt
                     ticks += n
                     waited += n * dt
+                    if dyn is not None and np.any(dyn.blocked):
+                        blocked_time += n * dt  # waiting for the way to clear
+                        if options.resume_from_balancing:  # as long as it takes
+                            limit = max(limit, waited + options.balance_chunk)
                     x = bal.states[-1].copy()
                     p = position_state(x, r)
                     if bal.stop_reason is StopReason.FELL:
@@ -972,7 +979,7 @@ class HybridController:
                         break
                     if dyn is not None and dyn.due(t):
                         tree = dyn.update(t, p[:2], tree)
-                        if not dyn.hold_clear(hold_xy, _BALANCING_MARGIN):
+                        if not dyn.hold_clear(hold_xy, _BALANCING_MARGIN + HOLD_MARGIN):
                             hold_xy = self._recovery_point(p, tree, dyn)
                     if options.resume_from_balancing and not _disturbed(disturbances, t):
                         nxt = self.best_policy(p, tree)
@@ -982,11 +989,12 @@ class HybridController:
                     status = TaskStatus.FELL
                     break
                 if nxt < 0:
-                    status = (
-                        TaskStatus.TIMEOUT
-                        if waited < options.balance_time - 1e-9
-                        else TaskStatus.NO_POLICY
-                    )
+                    if dyn is not None and np.any(dyn.blocked):
+                        status = TaskStatus.BLOCKED
+                    else:
+                        status = (
+                            TaskStatus.TIMEOUT if waited < limit - 1e-9 else TaskStatus.NO_POLICY
+                        )
                     break
                 events.append(SwitchEvent(t, -1, nxt, EventReason.RECOVERED, ticks))
                 current = nxt

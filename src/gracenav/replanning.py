@@ -51,6 +51,7 @@ from gracenav.world.moving import MovingObstacle
 
 __all__ = [
     "HOLD_HORIZON",
+    "HOLD_MARGIN",
     "SWEEP_STEP",
     "KnownObstacle",
     "ObstacleSensing",
@@ -67,10 +68,15 @@ BoolArray = NDArray[np.bool_]
 
 SWEEP_STEP = 0.05
 """Largest distance (m) between two samples of a swept D' along its reference."""
-HOLD_HORIZON = 3.0
+HOLD_HORIZON = 6.0
 """Where the robot waits (a rest trim, or balancing mode's point) must stay clear of
 every known obstacle's predicted motion over this time (s), not only over the policy's
-duration: a rest trim is held for as long as the way stays blocked."""
+duration: a rest trim is held for as long as the way stays blocked. 6 s: a person at
+walking speed crosses a 5 m corridor in that time."""
+HOLD_MARGIN = 0.25
+"""Extra clearance (m) of balancing mode's point from the obstacles' predicted motion:
+balancing mode is not verified, and a robot caught moving overshoots its point by a
+few decimetres."""
 
 
 @dataclass(frozen=True)
@@ -737,24 +743,56 @@ class ObstacleTracker:
         return self.hold_clear(self.library.start_xy[int(row)], rad)
 
     def hold_policy(self, p: FloatArray) -> int:
-        """An unblocked rest trim whose S contains ``p`` (the one whose start is
-        nearest), or −1: where the robot waits while the way is blocked."""
+        """Where the robot waits while the way is blocked: among the unblocked policies
+        whose S contains ``p``, a rest trim that may be held (:meth:`hold_row_clear`),
+        the one whose start is nearest; else a maneuver that ends at rest at a point
+        that may be held, the shortest; else −1."""
         from gracenav.policies import PrimitiveKind
 
-        hits = self.library.start_domain_contains(np.asarray(p, dtype=float)[None, :])
+        lib = self.library
+        hits = lib.start_domain_contains(np.asarray(p, dtype=float)[None, :])
         idx = hits.indices[hits.indptr[0] : hits.indptr[1]]
+        idx = idx[~self.blocked[idx]]
         if idx.size == 0:
             return -1
-        rest = set(self.library.trim_indices(PrimitiveKind.REST).tolist())
-        ok = np.array(
-            [
-                int(i) in rest and not self.blocked[int(i)] and self.hold_row_clear(int(i))
-                for i in idx
-            ],
-            dtype=bool,
-        )
-        if not np.any(ok):
-            return -1
-        cand = idx[ok]
-        d = np.linalg.norm(self.library.start_xy[cand] - np.asarray(p[:2], dtype=float), axis=1)
-        return int(cand[int(np.argmin(d))])
+        rest = np.isin(idx, lib.trim_indices(PrimitiveKind.REST))
+        trims = [int(i) for i in idx[rest] if self.hold_row_clear(int(i))]
+        if trims:
+            d = np.linalg.norm(lib.start_xy[trims] - np.asarray(p[:2], dtype=float), axis=1)
+            return trims[int(np.argmin(d))]
+        ends = lib.end_state[idx]
+        stops = idx[~rest & np.all(ends[:, 2:] == 0.0, axis=1)]
+        stops = stops[np.argsort(lib.durations[stops], kind="stable")]
+        for i in stops:
+            if self.hold_clear(lib.end_state[int(i), :2], 0.0):
+                return int(i)
+        return -1
+
+    def points_clear(self, points: FloatArray, radius: float) -> BoolArray:
+        """Whether each disc of ``radius`` (m) at ``points`` (k, 2) is clear of every
+        known obstacle's motion over :data:`HOLD_HORIZON` (footprint and margin
+        included)."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        ok = np.ones(pts.shape[0], dtype=bool)
+        for ob in self.known:
+            c = np.asarray(ob.center, dtype=float)
+            b = c + np.asarray(ob.velocity, dtype=float) * (HOLD_HORIZON + self.sensing.period)
+            need = ob.radius + self.footprint + self.sensing.margin + radius
+            ok &= _segment_distance(pts, c, b) >= need
+        return ok
+
+    def path_clear(self, start: FloatArray, points: FloatArray, radius: float) -> bool:
+        """Whether a way from ``start`` through ``points`` (k, 2) keeps discs of
+        ``radius`` (m) clear of every known obstacle's motion over
+        :data:`HOLD_HORIZON`, or for a robot already nearer than that, never nearer
+        than it is at ``start``."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        here = np.asarray(start, dtype=float).reshape(1, 2)
+        for ob in self.known:
+            c = np.asarray(ob.center, dtype=float)
+            b = c + np.asarray(ob.velocity, dtype=float) * (HOLD_HORIZON + self.sensing.period)
+            need = ob.radius + self.footprint + self.sensing.margin + radius
+            need = min(need, float(_segment_distance(here, c, b)[0]))
+            if np.any(_segment_distance(pts, c, b) < need):
+                return False
+        return True

@@ -364,13 +364,13 @@ def _moving_obstacles(top: Fields, max_time: float) -> tuple[MovingObstacle, ...
         leave = (
             r.number("leave", math.inf, minimum=0.0, unit="s") if "leave" in r.data else math.inf
         )
-        if not leave > appear:
-            raise r.fail(f"'{r.path('leave')}' {leave:g} s must come after appear ({appear:g} s)")
         if appear >= max_time:
             raise r.fail(
                 f"'{r.path('appear')}' {appear:g} s is not before simulation.max_time "
                 f"({max_time:g} s): the obstacle would never appear"
             )
+        if not leave > appear:
+            raise r.fail(f"'{r.path('leave')}' {leave:g} s must come after appear ({appear:g} s)")
         out.append(
             MovingObstacle(
                 radius=radius,
