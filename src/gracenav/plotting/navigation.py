@@ -74,10 +74,20 @@ def plot_paths(result: Any, path: str | Path) -> Path:
             t1 = getattr(d, "end_time", t0 + 0.05)
             sel = (ep.time >= t0) & (ep.time <= t1)
             ax.plot(p[sel, 0], p[sel, 1], "-", color="red", lw=3.5, alpha=0.5, zorder=4)
+        for ob in getattr(ep, "moving_obstacles", ()):
+            # Where each moving obstacle went while present, and its disc at its
+            # nearest approach to the robot.
+            live = ob.present(ep.time)
+            if np.any(live):
+                track = ob.position(ep.time[live])
+                ax.plot(track[:, 0], track[:, 1], ":", color="tab:red", lw=1.2)
+                k_near = int(np.argmin(np.linalg.norm(p[live, :2] - track, axis=1)))
+                _circle(ax, track[k_near], ob.radius, color="tab:red", alpha=0.8, lw=1.5)
+                ax.plot(*p[live][k_near, :2], "s", color="tab:red", ms=4)
         exits = [
             e.tick
             for e in ep.events
-            if e.reason.value in ("domain_exit", "not_in_goal", "balancing")
+            if e.reason.value in ("domain_exit", "not_in_goal", "balancing", "obstacle")
         ]
         if exits:
             ax.plot(p[exits, 0], p[exits, 1], "x", color="red", ms=7, mew=2)
@@ -195,7 +205,10 @@ def animate_episode(result: Any, run: int, path: str | Path, *, fps: int = 10) -
     (ball,) = ax.plot([], [], "o", color="tab:blue", ms=8)
     (dom,) = ax.plot([], [], "-", color="tab:orange", lw=0.8, alpha=0.7)
     title = ax.set_title("t = 0.0 s")  # reserves the title's place in the layout
-    moving = (trail, body, ball, dom)
+    # Moving obstacles, drawn where they truly were at each frame (absent: no outline).
+    others = tuple(getattr(ep, "moving_obstacles", ()))
+    discs = [ax.plot([], [], "-", color="tab:red", lw=1.5)[0] for _ in others]
+    moving = (trail, body, ball, dom, *discs)
     for a in (*moving, title):
         a.set_animated(True)  # left out of the full draw: drawn per frame below
     step = max(1, round(1.0 / (fps * (ep.time[1] - ep.time[0]))))
@@ -210,6 +223,12 @@ def animate_episode(result: Any, run: int, path: str | Path, *, fps: int = 10) -
         ball.set_data([p[i, 0]], [p[i, 1]])
         tip = p[i, :2] + lean_scale * lean[i]
         body.set_data([p[i, 0], tip[0]], [p[i, 1], tip[1]])
+        for ob, disc in zip(others, discs, strict=True):
+            if ob.present(ep.time[i]):
+                c = ob.position(ep.time[i])
+                disc.set_data(c[0] + ob.radius * np.cos(ang), c[1] + ob.radius * np.sin(ang))
+            else:
+                disc.set_data([], [])
         pid = int(ep.policy[i])
         if pid < 0:  # -1 balancing mode, -2 the terminal regulator at the goal
             dom.set_data([], [])
