@@ -46,6 +46,7 @@ _LAZY = {
     "Palette": "gracenav.palette",
     "load_palette": "gracenav.palette",
     "WorldMap": "gracenav.world",
+    "MovingObstacle": "gracenav.world",
     "load_map": "gracenav.world",
     "PolicyLibrary": "gracenav.library",
     "build_library": "gracenav.library",

@@ -26,6 +26,7 @@ from gracenav.world.geometry import (
     Shape,
 )
 from gracenav.world.loading import MAX_MAP_FILE_BYTES, load_map
+from gracenav.world.moving import MovingObstacle
 from gracenav.world.occupancy import DEFAULT_RESOLUTION, MAP_BYTES_PER_CELL, MAX_MAP_CELLS, WorldMap
 from gracenav.world.ros_map import save_ros_map
 from gracenav.world.synthetic import office_map
@@ -38,6 +39,7 @@ __all__ = [
     "MAX_MAP_FILE_BYTES",
     "MAX_POLYGON_POINTS",
     "Circle",
+    "MovingObstacle",
     "Polygon",
     "Rectangle",
     "Shape",
