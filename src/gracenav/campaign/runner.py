@@ -38,6 +38,7 @@ _MEASURES = (
     "switches",
     "non_graceful_switches",
     "balancing_s",
+    "replans",
 )
 
 # Per worker process: the palette and the libraries of the maps seen so far, so that
@@ -120,7 +121,6 @@ def run_trial(campaign: Campaign, index: int, planner: str, params: Any = None) 
         row[key] = run[key]
     ep = result.episodes[0]
     row["fallbacks"] = sum(1 for e in ep.events if e.reason == EventReason.BALANCING)
-    row["replans"] = int(getattr(ep, "replans", 0))
     return row
 
 
