@@ -193,9 +193,30 @@ def _check_run(result, out: Path) -> dict:
     return summary
 
 
+def _starts_clear_of_known_obstacles(result) -> int:
+    """Every policy the controller started was clear of every obstacle it knew: its D'
+    over its whole duration (every tick, brute force) stays beyond the footprint plus
+    the obstacle's radius from the obstacle's motion over that duration (its true
+    position and velocity at the switch; zero margin). Returns the switches checked."""
+    sc, ep = result.scenario, result.episodes[0]
+    lib = result.library
+    sensing = ObstacleSensing(range=sc.sensing_range)
+    checked = 0
+    for e in ep.events:
+        if e.to_policy < 0:
+            continue
+        xy = ep.position_state[e.tick, :2]
+        for ob in sense(sc.moving_obstacles, xy, e.time, sensing):
+            d = _brute_distance(lib, e.to_policy, ob, 0.0)
+            assert d >= ob.radius + sc.footprint_radius, (e, d)
+            checked += 1
+    return checked
+
+
 def test_person_crossing_a_corridor(tmp_path: Path) -> None:
     result = run_scenario(load_scenario(SCENARIOS / "corridor_person.yaml"))
     _check_run(result, tmp_path)
+    assert _starts_clear_of_known_obstacles(result) >= 2
     reasons = {r.reason for r in result.episodes[0].replans}
     assert {"obstacle_sensed", "obstacle_moved"} <= reasons
 
@@ -203,6 +224,7 @@ def test_person_crossing_a_corridor(tmp_path: Path) -> None:
 def test_cart_in_a_doorway_for_5_s(tmp_path: Path) -> None:
     result = run_scenario(load_scenario(SCENARIOS / "doorway_cart.yaml"))
     _check_run(result, tmp_path)
+    _starts_clear_of_known_obstacles(result)  # asserts each start it finds
     ep, run = result.episodes[0], result.runs[0]
     p = ep.position_state
     # The robot waits while the cart is there (3-8 s) and goes through afterwards.
