@@ -392,6 +392,9 @@ class _Curve:
     xy: FloatArray  # (n, 2)
     tangent: FloatArray  # (n, 2) unit
     curvature: FloatArray  # (n,) signed (1/m)
+    u: FloatArray | None = None  # (m,) dense spline parameters ...
+    s_u: FloatArray | None = None  # (m,) ... and their arc lengths (m)
+    spline: BSpline | None = None  # None: the polyline itself
 
     @property
     def length(self) -> float:
@@ -414,9 +417,9 @@ def _sample_curve(spline: BSpline | None, polyline: FloatArray, step: float) -> 
         curvature = np.gradient(heading, s)
         return _Curve(s, xy, tangent, curvature)
     d1, d2 = spline.derivative(1), spline.derivative(2)
-    u = np.linspace(0.0, 1.0, 20 * len(spline.c) + 1)
-    speed = np.linalg.norm(d1(u), axis=1)
-    s_u = np.r_[0.0, np.cumsum(0.5 * (speed[1:] + speed[:-1]) * np.diff(u))]
+    rough = float(np.sum(np.linalg.norm(np.diff(spline.c, axis=0), axis=1)))
+    u = np.linspace(0.0, 1.0, max(200 * len(spline.c), math.ceil(rough / (0.05 * step))) + 1)
+    s_u = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(spline(u), axis=0), axis=1))]
     n = max(2, math.ceil(s_u[-1] / step) + 1)
     s = np.linspace(0.0, s_u[-1], n)
     uu = np.interp(s, s_u, u)
@@ -425,7 +428,21 @@ def _sample_curve(spline: BSpline | None, polyline: FloatArray, step: float) -> 
     nrm = np.maximum(np.linalg.norm(r1, axis=1), 1e-12)
     tangent = r1 / nrm[:, None]
     curvature = (r1[:, 0] * r2[:, 1] - r1[:, 1] * r2[:, 0]) / nrm**3
-    return _Curve(s, np.asarray(xy, dtype=float), tangent, curvature)
+    return _Curve(s, np.asarray(xy, dtype=float), tangent, curvature, u, s_u, spline)
+
+
+def _on_curve(curve: _Curve, s: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Position (n, 2), unit tangent (n, 2) and signed curvature (n,) at arc lengths ``s``."""
+    if curve.spline is None or curve.u is None or curve.s_u is None:
+        xy = np.stack([np.interp(s, curve.s, curve.xy[:, k]) for k in range(2)], axis=1)
+        tan = np.stack([np.interp(s, curve.s, curve.tangent[:, k]) for k in range(2)], axis=1)
+        tan /= np.maximum(np.linalg.norm(tan, axis=1, keepdims=True), 1e-12)
+        return xy, tan, np.interp(s, curve.s, curve.curvature)
+    u = np.interp(s, curve.s_u, curve.u)
+    r1, r2 = curve.spline.derivative(1)(u), curve.spline.derivative(2)(u)
+    nrm = np.maximum(np.linalg.norm(r1, axis=1), 1e-12)
+    kap = (r1[:, 0] * r2[:, 1] - r1[:, 1] * r2[:, 0]) / nrm**3
+    return np.asarray(curve.spline(u), dtype=float), r1 / nrm[:, None], kap
 
 
 def smooth_path(
@@ -576,7 +593,8 @@ def _profile(
     speed = np.interp(t, t_s, v)
     pad = 2 * m
     padded = np.r_[np.full(pad, vs), speed, np.zeros(pad)]
-    f = np.maximum(_box3(padded, m), 0.0)
+    f = _box3(padded, m)
+    f[f < 1e-9 * limits.max_speed] = 0.0  # the running sums' rounding where it is at rest
     if vs > 0:
         f = f[pad:]  # t = 0 inside the constant-speed prefix: already a trim
     else:
@@ -593,11 +611,8 @@ def _profile(
 
 
 def _timed(curve: _Curve, s: FloatArray, sd: FloatArray, sdd: FloatArray, dt: float) -> TimedPath:
-    xy = np.stack([np.interp(s, curve.s, curve.xy[:, k]) for k in range(2)], axis=1)
-    tan = np.stack([np.interp(s, curve.s, curve.tangent[:, k]) for k in range(2)], axis=1)
-    tan /= np.maximum(np.linalg.norm(tan, axis=1, keepdims=True), 1e-12)
+    xy, tan, kap = _on_curve(curve, s)
     nor = np.stack([-tan[:, 1], tan[:, 0]], axis=1)
-    kap = np.interp(s, curve.s, curve.curvature)
     vel = tan * sd[:, None]
     acc = tan * sdd[:, None] + nor * (kap * sd**2)[:, None]
     jerk = np.gradient(acc, dt, axis=0)
