@@ -87,7 +87,9 @@ BASELINE_POLICY = -3
 library row (≥ 0), not balancing mode (−1, which :attr:`Episode.balancing_time` counts)
 and not the terminal regulator (−2)."""
 
-_SQRT2 = math.sqrt(2.0)
+_DEGREE = 5
+"""Degree of the smoothing B-spline: 5 makes the curvature C³, so that the timed path's
+jerk is continuous and its snap bounded (a cubic's jerk jumps at every knot)."""
 
 
 # --------------------------------------------------------------------------------------
@@ -129,8 +131,8 @@ class DecoupledOptions:
         smoothed profile exceeds the acceleration limit.
     """
 
-    safety_margin: float = 0.1
-    smooth_margin: float = 0.05
+    safety_margin: float = 0.25
+    smooth_margin: float = 0.2
     smoothing_spacing: float = 0.5
     speed_scale: float = 1.0
     accel_scale: float = 0.9
@@ -369,19 +371,21 @@ def shortcut_path(world_map: WorldMap, path: ArrayLike, clearance: float) -> Flo
 
 
 def _bspline(polyline: FloatArray, spacing: float) -> BSpline:
-    """Clamped cubic B-spline whose control polygon is ``polyline`` resampled every
-    ``spacing`` (m) along each segment."""
+    """Clamped B-spline of degree :data:`_DEGREE` whose control polygon is ``polyline``
+    resampled every ``spacing`` (m) along each segment."""
     ctrl = [polyline[:1]]
     for a, b in itertools.pairwise(polyline):
         m = max(1, math.ceil(float(np.linalg.norm(b - a)) / spacing))
         ctrl.append(a + np.linspace(0.0, 1.0, m + 1)[1:, None] * (b - a))
     c = np.vstack(ctrl)
-    if c.shape[0] < 4:  # a straight segment: insert points so that degree 3 applies
-        c = polyline[0] + np.linspace(0.0, 1.0, 4)[:, None] * (polyline[-1] - polyline[0])
+    if c.shape[0] < _DEGREE + 1:  # too few points for the degree: resample the polyline
+        seg = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(polyline, axis=0), axis=1))]
+        s = np.linspace(0.0, seg[-1], _DEGREE + 1)
+        c = np.stack([np.interp(s, seg, polyline[:, k]) for k in range(2)], axis=1)
     n = c.shape[0]
-    inner = np.linspace(0.0, 1.0, n - 2)[1:-1]
-    knots = np.concatenate([np.zeros(4), inner, np.ones(4)])
-    return BSpline(knots, c, 3)
+    inner = np.linspace(0.0, 1.0, n - _DEGREE + 1)[1:-1]
+    knots = np.concatenate([np.zeros(_DEGREE + 1), inner, np.ones(_DEGREE + 1)])
+    return BSpline(knots, c, _DEGREE)
 
 
 @dataclass(frozen=True)
