@@ -229,3 +229,13 @@ def test_surveillance_is_refused() -> None:
     )
     with pytest.raises(ConfigError, match="point-to-point only"):
         run_decoupled(parse_scenario(data, source="patrol.yaml"))
+
+
+def test_start_at_the_goal_holds_it_without_planning() -> None:
+    data = _scenario(
+        task={"kind": "point_to_point", "goal": [4, 4, 0, 0], "starts": [[4, 4, 0, 0]]}
+    )
+    result = run_decoupled(parse_scenario(data, source="there.yaml"))
+    assert result.runs[0].reached_goal
+    assert result.runs[0].time_s <= 0.125 + 1e-9
+    assert result.episodes[0].tree_seconds == ()

@@ -87,6 +87,10 @@ BASELINE_POLICY = -3
 library row (≥ 0), not balancing mode (−1, which :attr:`Episode.balancing_time` counts)
 and not the terminal regulator (−2)."""
 
+_BASIS_BUDGET_BYTES = 2.0e8
+"""Memory budget (bytes) of the shape planner's basis tables for one baseline path: the
+knot spacing stays 1/8 s (as the palette's maneuvers) up to ≈ 20 s paths, and widens
+beyond."""
 _DEGREE = 5
 """Degree of the smoothing B-spline: 5 makes the curvature C³, so that the timed path's
 jerk is continuous and its snap bounded (a cubic's jerk jumps at every knot)."""
@@ -778,10 +782,21 @@ def plan_decoupled(
 def _reference(timed: TimedPath, gains: ControllerGains) -> tuple[Reference, FloatArray, float]:
     """Feasible reference of the 3D model whose flat output tracks ``timed``: states,
     feed-forward torques, ball (x, y, ẋ, ẏ, ẍ, ÿ) (N, 6) and the planner's peak lean."""
-    from gracenav.shape_planner import plan_shape_trajectory
+    from gracenav import shape_planner
     from gracenav.simulate import Reference
 
-    res = plan_shape_trajectory(timed, gains.params, model="3d")
+    # The planner's basis tables take 48 bytes per integration step and spline
+    # coefficient: widen the knot spacing of long paths to stay within the budget.
+    steps = round(timed.duration / timed.dt)
+    spacing = max(0.125, 48.0 * steps * steps * timed.dt / _BASIS_BUDGET_BYTES)
+    spacing = math.ceil(spacing / 0.125) * 0.125
+    res = shape_planner.plan_shape_trajectory(
+        timed,
+        gains.params,
+        model="3d",
+        options=shape_planner.ShapePlannerOptions(knot_spacing=spacing, step=timed.dt),
+    )
+    shape_planner._basis.cache_clear()  # one-off durations: do not keep their tables
     if res.status.value == "diverged":
         raise PlanningError("the shape trajectory planner diverged on the baseline's path")
     sample = res.trajectory.sample(timed.time)
@@ -857,18 +872,21 @@ def track_decoupled(
     r = gains.params.ball_radius
     x = np.asarray(x0, dtype=float).copy()
     p = position_state(x, r)
-    plans = [
-        plan_decoupled(
-            world_map,
-            p[:2],
-            goal_xy,
-            footprint_radius=footprint_radius,
-            limits=limits,
-            start_velocity=p[2:],
-            options=options,
-            dt=dt,
+    at_goal = bool(np.linalg.norm(p[:2] - goal_xy) <= goal_tolerance)
+    plans = []
+    if not at_goal:  # else the goal is only held
+        plans.append(
+            plan_decoupled(
+                world_map,
+                p[:2],
+                goal_xy,
+                footprint_radius=footprint_radius,
+                limits=limits,
+                start_velocity=p[2:],
+                options=options,
+                dt=dt,
+            )
         )
-    ]
     record = _Recorder()
     applied: set[int] = set()
     t = 0.0
@@ -876,7 +894,8 @@ def track_decoupled(
     max_ticks = max(1, math.ceil(max_time / dt - 1e-9))
     replans = 0
     status = TaskStatus.TIMEOUT
-    tracking = True
+    tracking = not at_goal
+    hold_xy = goal_xy
     err2 = 1.0 / options.replan_error**2
 
     def run_segment(ref: Reference, ref_pos: FloatArray, monitor: bool) -> Any:
@@ -916,6 +935,8 @@ def track_decoupled(
     def replan() -> bool:
         nonlocal replans
         replans += 1
+        if np.linalg.norm(p[:2] - goal_xy) <= goal_tolerance:
+            return False  # too short a path to plan: hold the goal
         try:
             plans.append(
                 plan_decoupled(
@@ -941,14 +962,16 @@ def track_decoupled(
                 status = TaskStatus.FELL
                 break
             if res.stop_reason is StopReason.DOMAIN_EXIT:
-                if not replan():
+                if not replan():  # no path from here: keep station until one exists
                     tracking = False
+                    near = np.linalg.norm(p[:2] - goal_xy) <= goal_tolerance
+                    hold_xy = goal_xy if near else p[:2].copy()
                 continue
             tracking = False
         else:
-            hold = Reference.hold(goal_xy, options.hold_chunk, params=gains.params)
+            hold = Reference.hold(hold_xy, options.hold_chunk, params=gains.params)
             ref_pos = np.zeros((hold.num_ticks + 1, 6))
-            ref_pos[:, :2] = goal_xy
+            ref_pos[:, :2] = hold_xy
             res = run_segment(hold, ref_pos, False)
             if res.stop_reason is StopReason.FELL:
                 status = TaskStatus.FELL
@@ -962,6 +985,7 @@ def track_decoupled(
         far = np.linalg.norm(p[:2] - goal_xy) > options.replan_error
         if not tracking and far and replans < options.max_replans and replan():
             tracking = True
+            hold_xy = goal_xy
     time, states, inputs, policy, reference = record.arrays(t, x)
     episode = Episode(
         time=time,
@@ -1049,7 +1073,7 @@ def run_decoupled(
             simulation=sim,
             options=options,
         )
-        first_plan.append(plans[0].seconds)
+        first_plan.append(plans[0].seconds if plans else 0.0)
         episodes.append(ep)
         runs.append(_summarise(ep, start, scenario, world_map, plant_params))
         if progress is not None:
