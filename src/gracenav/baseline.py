@@ -11,7 +11,7 @@ baseline*):
    footprint); a start or goal closer than that to an obstacle is connected to its
    nearest inflated-free cell.
 2. **Smoothing.** Greedy shortcutting (keep the farthest waypoint in line of sight,
-   checked against the inflated clearance), then a clamped cubic B-spline whose
+   checked against the inflated clearance), then a clamped quintic B-spline whose
    control polygon is the shortcut polyline resampled every ``smoothing_spacing``;
    the spacing halves until the curve keeps the clearance (the polyline itself is the
    last resort).
@@ -461,12 +461,12 @@ def smooth_path(
     spacing: float = 0.5,
     step: float = 0.005,
 ) -> tuple[FloatArray, float]:
-    """Smooth a shortcut polyline into a C² curve that keeps ``clearance`` (m).
+    """Smooth a shortcut polyline into a curve with C³ curvature that keeps ``clearance`` (m).
 
-    A clamped cubic B-spline on the polyline resampled every ``spacing`` (m) as its
-    control polygon; the spacing halves until the curve keeps the clearance (or
-    ``floor``, the clearance at the start, where the start is closer than that), down
-    to the map resolution; then the polyline itself is returned.
+    A clamped quintic B-spline on the polyline resampled every ``spacing`` (m) as its
+    control polygon; the spacing halves until the curve keeps the clearance, down to
+    the map resolution; then the polyline itself is returned. Where the start is closer
+    to an obstacle than ``clearance``, the curve may only move away until it has it.
 
     Returns
     -------
