@@ -244,3 +244,10 @@ def test_start_at_the_goal_holds_it_without_planning() -> None:
     assert result.runs[0].reached_goal
     assert result.runs[0].time_s <= 0.125 + 1e-9
     assert result.episodes[0].tree_seconds == ()
+
+
+def test_drag_waits_then_replans_once() -> None:
+    drag = {"kind": "drag", "start_time": 3.0, "end_time": 5.0, "velocity": [0.0, -0.3]}
+    result = run_decoupled(parse_scenario(_scenario(disturbances=[drag]), source="drag.yaml"))
+    assert result.runs[0].reached_goal
+    assert len(result.episodes[0].tree_seconds) == 2  # the first plan and one after the drag

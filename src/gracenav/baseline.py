@@ -32,7 +32,8 @@ baseline*):
    robot is within the hybrid controller's goal tolerance.
 5. **Replanning.** When the position error to the reference exceeds
    ``replan_error`` the path is replanned from the measured position and retimed
-   from the measured speed along it (at most ``max_replans`` times).
+   from the measured speed along it (at most ``max_replans`` times); while a drag or
+   body force acts (the robot is held) it keeps station instead and replans after.
 6. **Fall detector.** The simulator's fall limit (``SimulationOptions.fall_lean``):
    the run ends with :attr:`~gracenav.execution.TaskStatus.FELL`.
 """
@@ -860,7 +861,13 @@ def track_decoupled(
     PlanningError
         If the first plan fails.
     """
-    from gracenav.execution import Episode, TaskStatus, _Recorder, _segment_disturbances
+    from gracenav.execution import (
+        Episode,
+        TaskStatus,
+        _disturbed,
+        _Recorder,
+        _segment_disturbances,
+    )
     from gracenav.simulate import Reference, SimulationOptions, StopReason, position_state, simulate
 
     options = options if options is not None else DecoupledOptions()
@@ -962,7 +969,10 @@ def track_decoupled(
                 status = TaskStatus.FELL
                 break
             if res.stop_reason is StopReason.DOMAIN_EXIT:
-                if not replan():  # no path from here: keep station until one exists
+                if _disturbed(disturbances, t):  # held and moved: wait, replan after
+                    tracking = False
+                    hold_xy = p[:2].copy()
+                elif not replan():  # no path from here: keep station until one exists
                     tracking = False
                     near = np.linalg.norm(p[:2] - goal_xy) <= goal_tolerance
                     hold_xy = goal_xy if near else p[:2].copy()
@@ -983,7 +993,13 @@ def track_decoupled(
             status = TaskStatus.GOAL_REACHED
             break
         far = np.linalg.norm(p[:2] - goal_xy) > options.replan_error
-        if not tracking and far and replans < options.max_replans and replan():
+        if (
+            not tracking
+            and far
+            and replans < options.max_replans
+            and not _disturbed(disturbances, t)
+            and replan()
+        ):
             tracking = True
             hold_xy = goal_xy
     time, states, inputs, policy, reference = record.arrays(t, x)
