@@ -7,7 +7,7 @@ Two maps at 5 cm resolution, one pass at spacing d (``max_halvings=0``):
 
 Each map runs in its own subprocess so that its peak resident memory
 (``resource.getrusage(RUSAGE_SELF).ru_maxrss``) is its own. The child reports the peak
-after each stage (map and clearance field, library, graph, reversed graph and one tree)
+after each stage (map and clearance field, library, graph, one tree)
 and the wall time of each; the parent prints a table. A child that runs out of the
 address-space limit (``--max-gib``) or the time limit is reported, not fatal.
 
@@ -36,8 +36,9 @@ def _rss_mib() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # Linux: KiB
 
 
-def child(case: str) -> dict[str, float | int | str]:
-    """Build map, library, graph, reversed graph and one tree; peak RSS after each.
+def child(case: str, size: float) -> dict[str, float | int | str]:
+    """Build map, library, graph and one tree (the first, as a controller plans it:
+    :meth:`PreparesGraph.search_form`); peak RSS after each.
 
     The results so far are printed (one JSON line) after every stage, so a stage that
     fails still leaves the earlier ones to the parent."""
@@ -54,10 +55,10 @@ def child(case: str) -> dict[str, float | int | str]:
     out["palette"] = note
     t0 = time.perf_counter()
     if case == "office":
-        wmap = office_map(SIZE, RESOLUTION, seed=0)
+        wmap = office_map(size, RESOLUTION, seed=0)
     else:
         wmap = load_map(
-            {"bounds": [[0.0, 0.0], [SIZE, SIZE]], "obstacles": [], "resolution": RESOLUTION}
+            {"bounds": [[0.0, 0.0], [size, size]], "obstacles": [], "resolution": RESOLUTION}
         )
     _ = wmap.clearance_grid
     out["map_s"] = time.perf_counter() - t0
@@ -75,20 +76,19 @@ def child(case: str) -> dict[str, float | int | str]:
     out["rss_graph_mib"] = _rss_mib()
     out["edges"] = graph.num_edges
     print(json.dumps(out), flush=True)
-    t0 = time.perf_counter()
-    csc = graph.csc("time")
-    out["csc_s"] = time.perf_counter() - t0
     trims = lib.trim_indices()
-    goal = int(trims[np.argmin(np.linalg.norm(lib.start_xy[trims] - SIZE / 2, axis=1))])
+    goal = int(trims[np.argmin(np.linalg.norm(lib.start_xy[trims] - size / 2, axis=1))])
+    form = graph.search_form("time")
+    out["search_form"] = "stored" if form is not graph else "lattice"
     t0 = time.perf_counter()
-    tree = plan_tree(csc, goal)
+    tree = plan_tree(form, goal)
     out["tree_s"] = time.perf_counter() - t0
     out["tree_size"] = int(np.isfinite(tree.cost_to_go).sum())
     out["rss_tree_mib"] = _rss_mib()
     return out
 
 
-def run_child(case: str, max_gib: float, timeout: float) -> dict[str, object]:
+def run_child(case: str, size: float, max_gib: float, timeout: float) -> dict[str, object]:
     here = os.path.dirname(os.path.abspath(__file__))
     limit = int(max_gib * 2**30)
 
@@ -98,7 +98,14 @@ def run_child(case: str, max_gib: float, timeout: float) -> dict[str, object]:
     t0 = time.perf_counter()
     try:
         proc = subprocess.run(
-            [sys.executable, os.path.join(here, "bench_scale.py"), "--child", case],
+            [
+                sys.executable,
+                os.path.join(here, "bench_scale.py"),
+                "--child",
+                case,
+                "--size",
+                str(size),
+            ],
             capture_output=True,
             text=True,
             timeout=timeout,
@@ -127,20 +134,23 @@ def main() -> None:
     ap.add_argument("--only", choices=CASES, help="run one map only")
     ap.add_argument("--max-gib", type=float, default=8.0, help="address-space limit per map")
     ap.add_argument("--timeout", type=float, default=900.0, help="time limit per map (s)")
+    ap.add_argument("--size", type=float, default=SIZE, help="side of the square maps (m)")
     ap.add_argument("--child", choices=CASES, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        print(json.dumps(child(args.child)))
+        print(json.dumps(child(args.child, args.size)))
         return
-    results = [run_child(c, args.max_gib, args.timeout) for c in CASES if args.only in (None, c)]
+    results = [
+        run_child(c, args.size, args.max_gib, args.timeout) for c in CASES if args.only in (None, c)
+    ]
     notes = {str(r["palette"]) for r in results if "palette" in r}
     for n in notes:
         print(n)
-    print(f"{SIZE:g} m x {SIZE:g} m maps, {RESOLUTION:g} m cells, one pass at spacing d")
+    print(f"{args.size:g} m x {args.size:g} m maps, {RESOLUTION:g} m cells, one pass at spacing d")
     head = (
         f"{'map':<7} {'policies':>9} {'edges':>11} {'map s':>6} {'library s':>9} "
-        f"{'graph s':>7} {'lib+graph s':>11} {'csc s':>6} {'tree ms':>7} {'tree size':>9} "
-        f"{'peak RSS MiB: map':>17} {'library':>7} {'graph':>7} {'+csc,tree':>9}"
+        f"{'graph s':>7} {'lib+graph s':>11} {'search':>7} {'tree ms':>7} {'tree size':>9} "
+        f"{'peak RSS MiB: map':>17} {'library':>7} {'graph':>7} {'+tree':>9}"
     )
     print(head)
     for r in results:
@@ -154,7 +164,7 @@ def main() -> None:
         print(
             f"{r['case']!s:<7} {cell('policies', 9, '.0f')} {cell('edges', 11, '.0f')} "
             f"{cell('map_s', 6, '.1f')} {cell('library_s', 9, '.1f')} {cell('graph_s', 7, '.1f')} "
-            f"{'-' if total is None else f'{total:.1f}':>11} {cell('csc_s', 6, '.2f')} "
+            f"{'-' if total is None else f'{total:.1f}':>11} {r.get('search_form', '-')!s:>7} "
             f"{cell('tree_s', 7, '.1f', 1e3)} {cell('tree_size', 9, '.0f')} "
             f"{cell('rss_map_mib', 17, '.0f')} {cell('rss_library_mib', 7, '.0f')} "
             f"{cell('rss_graph_mib', 7, '.0f')} {cell('rss_tree_mib', 9, '.0f')}"

@@ -17,18 +17,16 @@ from scipy.sparse import csgraph
 from synthetic import palette, policy, primitive
 
 from gracenav import ConfigError, PlanningError
-from gracenav.graph import build_graph
-from gracenav.library import build_library
-from gracenav.planning import (
+from gracenav._search import (
     _DONE,
     _REVISITED,
     _TOO_MANY_COSTS,
-    CostCriterion,
-    PolicyTree,
     _search_heap,
     _search_queues,
-    plan_tree,
 )
+from gracenav.graph import build_graph
+from gracenav.library import build_library
+from gracenav.planning import CostCriterion, PolicyTree, plan_tree
 from gracenav.policies import PrimitiveKind
 from gracenav.world import load_map
 

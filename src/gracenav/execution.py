@@ -432,7 +432,7 @@ class HybridController:
         self.palette = library.palette
         self.gains = self.palette.gains
         self.params = params if params is not None else self.palette.params
-        self._adjacency = graph.csc(self.criterion.value)
+        self._adjacency = graph.search_form(self.criterion.value)
         self._trees: dict[int, PolicyTree] = {}
         self._terminals: dict[tuple[float, ...], tuple[TerminalPolicy, ...]] = {}
         self.tree_seconds: list[float] = []
