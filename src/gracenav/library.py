@@ -883,29 +883,150 @@ def _check_sweeps(
     footprint: float,
 ) -> BoolArray:
     """Validity of undecided (type, point) pairs: group discs first, samples where a
-    group disc is not clear."""
+    group disc is not clear (compiled; the clearance is computed as
+    :meth:`gracenav.world.WorldMap.clearance` computes it, operation for operation)."""
     valid = np.ones(pair_type.size, dtype=bool)
-    g_first_of_type = tables["type_group_first"]
-    g_count_of_type = tables["type_group_count"]
-    step = max(1, _CHUNK // _GROUP)
-    for a in range(0, pair_type.size, step):
-        t = pair_type[a : a + step]
-        q = pair_point[a : a + step]
-        counts = g_count_of_type[t]
-        rep = np.repeat(np.arange(t.size), counts)
-        gid = g_first_of_type[t][rep] + _ramp(counts)
-        xy = points[q[rep]] + tables["group_centre"][gid]
-        ok = world_map.clearance(xy) >= footprint + tables["group_reach"][gid]
-        bad_g, bad_rep = gid[~ok], rep[~ok]
-        if bad_g.size == 0:
-            continue
-        ns = tables["group_size"][bad_g]
-        rep2 = np.repeat(np.arange(bad_g.size), ns)
-        sid = tables["group_sample_first"][bad_g][rep2] + _ramp(ns)
-        xy2 = points[q[bad_rep[rep2]]] + tables["sample_offset"][sid]
-        fail = world_map.clearance(xy2) < footprint + tables["sample_reach"][sid]
-        valid[a + bad_rep[rep2[fail]]] = False
+    if pair_type.size == 0:
+        return valid
+    _, nearest = world_map._clearance_data()
+    (x0, y0), (x1, y1) = world_map.bounds
+    _check_sweeps_kernel(
+        valid,
+        np.ascontiguousarray(points, dtype=np.float64),
+        np.ascontiguousarray(pair_type, dtype=np.int64),
+        np.ascontiguousarray(pair_point, dtype=np.int64),
+        tables["type_group_first"],
+        tables["type_group_count"],
+        tables["group_centre"],
+        tables["group_reach"],
+        tables["group_sample_first"],
+        tables["group_size"],
+        tables["sample_offset"],
+        tables["sample_reach"],
+        float(footprint),
+        nearest,
+        np.ascontiguousarray(world_map.occupied, dtype=np.bool_),
+        float(world_map.origin[0]),
+        float(world_map.origin[1]),
+        float(world_map.resolution),
+        float(x0),
+        float(y0),
+        float(x1),
+        float(y1),
+    )
     return valid
+
+
+@njit(cache=True, nogil=True)
+def _clearance_at(
+    px: float,
+    py: float,
+    nearest: Any,
+    occupied: Any,
+    ox: float,
+    oy: float,
+    res: float,
+    xmin: float,
+    ymin: float,
+    xmax: float,
+    ymax: float,
+) -> float:
+    """:meth:`gracenav.world.WorldMap.clearance` of one point, the same operations in
+    the same order (so the same value)."""
+    ny, nx = occupied.shape
+    fx = np.floor((px - ox) / res)
+    fy = np.floor((py - oy) / res)
+    if not (fx >= 0 and fx < nx and fy >= 0 and fy < ny):
+        return 0.0
+    iy = int(fy)
+    ix = int(fx)
+    if occupied[iy, ix]:
+        return 0.0
+    ky = int(np.floor((py - oy) / res - 0.5)) + 1
+    kx = int(np.floor((px - ox) / res - 0.5)) + 1
+    best = np.inf
+    for k in range(4):
+        dyk = k >> 1
+        dxk = k & 1
+        jy = nearest[0, ky + dyk, kx + dxk] - 1
+        jx = nearest[1, ky + dyk, kx + dxk] - 1
+        bx0 = ox + jx * res
+        by0 = oy + jy * res
+        dx = max(max(bx0 - px, px - (bx0 + res)), 0.0)
+        dy = max(max(by0 - py, py - (by0 + res)), 0.0)
+        best = min(best, np.hypot(dx, dy))
+    edge = min(min(px - xmin, xmax - px), min(py - ymin, ymax - py))
+    return max(min(best, edge), 0.0)
+
+
+@njit(cache=True, nogil=True)
+def _check_sweeps_kernel(
+    valid: Any,
+    points: Any,
+    pair_type: Any,
+    pair_point: Any,
+    type_group_first: Any,
+    type_group_count: Any,
+    group_centre: Any,
+    group_reach: Any,
+    group_sample_first: Any,
+    group_size: Any,
+    sample_offset: Any,
+    sample_reach: Any,
+    footprint: float,
+    nearest: Any,
+    occupied: Any,
+    ox: float,
+    oy: float,
+    res: float,
+    xmin: float,
+    ymin: float,
+    xmax: float,
+    ymax: float,
+) -> None:
+    """Mark the pairs whose swept D' is not clear: a pair is valid iff in every group
+    either the bounding disc or every sample is clear (see :func:`build_library`)."""
+    for a in range(pair_type.size):
+        t = pair_type[a]
+        qx = points[pair_point[a], 0]
+        qy = points[pair_point[a], 1]
+        g0 = type_group_first[t]
+        for g in range(g0, g0 + type_group_count[t]):
+            c = _clearance_at(
+                qx + group_centre[g, 0],
+                qy + group_centre[g, 1],
+                nearest,
+                occupied,
+                ox,
+                oy,
+                res,
+                xmin,
+                ymin,
+                xmax,
+                ymax,
+            )
+            if c >= footprint + group_reach[g]:
+                continue
+            s0 = group_sample_first[g]
+            for k in range(s0, s0 + group_size[g]):
+                c = _clearance_at(
+                    qx + sample_offset[k, 0],
+                    qy + sample_offset[k, 1],
+                    nearest,
+                    occupied,
+                    ox,
+                    oy,
+                    res,
+                    xmin,
+                    ymin,
+                    xmax,
+                    ymax,
+                )
+                if c < footprint + sample_reach[k]:
+                    valid[a] = False
+                    break
+            if not valid[a]:
+                break
 
 
 def _sweep_tables(sweeps: list[_Sweep]) -> dict[str, NDArray[Any]]:
