@@ -36,7 +36,7 @@ def _rss_mib() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # Linux: KiB
 
 
-def child(case: str, size: float) -> dict[str, float | int | str]:
+def child(case: str, size: float, tree_stage: bool) -> dict[str, float | int | str]:
     """Build map, library, graph and one tree (the first, as a controller plans it:
     :meth:`PreparesGraph.search_form`); peak RSS after each.
 
@@ -47,7 +47,7 @@ def child(case: str, size: float) -> dict[str, float | int | str]:
 
     from gracenav.graph import build_graph
     from gracenav.library import build_library
-    from gracenav.planning import plan_tree
+    from gracenav.planning import plan_path, plan_tree
     from gracenav.world import load_map, office_map
 
     out: dict[str, float | int | str] = {"case": case, "rss_start_mib": _rss_mib()}
@@ -78,6 +78,22 @@ def child(case: str, size: float) -> dict[str, float | int | str]:
     print(json.dumps(out), flush=True)
     trims = lib.trim_indices()
     goal = int(trims[np.argmin(np.linalg.norm(lib.start_xy[trims] - size / 2, axis=1))])
+    # The first point-to-point plan: A* from the trim nearest a corner region (the
+    # nearest whose plan reaches the goal) to the goal near the centre.
+    near = trims[np.argsort(np.linalg.norm(lib.start_xy[trims] - 0.1 * size, axis=1))]
+    t0 = time.perf_counter()
+    for start in near[:20]:
+        path = plan_path(graph, int(start), goal)
+        if path.reachable:
+            break
+    out["plan_s"] = time.perf_counter() - t0
+    out["plan_cost"] = path.cost
+    out["plan_expanded"] = path.expanded
+    out["plan_policies"] = int(path.policies.size)
+    out["rss_plan_mib"] = _rss_mib()
+    print(json.dumps(out), flush=True)
+    if not tree_stage:
+        return out
     form = graph.search_form("time")
     out["search_form"] = "stored" if form is not graph else "lattice"
     t0 = time.perf_counter()
@@ -88,7 +104,9 @@ def child(case: str, size: float) -> dict[str, float | int | str]:
     return out
 
 
-def run_child(case: str, size: float, max_gib: float, timeout: float) -> dict[str, object]:
+def run_child(
+    case: str, size: float, max_gib: float, timeout: float, tree: bool
+) -> dict[str, object]:
     here = os.path.dirname(os.path.abspath(__file__))
     limit = int(max_gib * 2**30)
 
@@ -135,13 +153,16 @@ def main() -> None:
     ap.add_argument("--max-gib", type=float, default=8.0, help="address-space limit per map")
     ap.add_argument("--timeout", type=float, default=900.0, help="time limit per map (s)")
     ap.add_argument("--size", type=float, default=SIZE, help="side of the square maps (m)")
+    ap.add_argument("--no-tree", action="store_true", help="skip the whole single-goal tree")
     ap.add_argument("--child", choices=CASES, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        print(json.dumps(child(args.child, args.size)))
+        print(json.dumps(child(args.child, args.size, not args.no_tree)))
         return
     results = [
-        run_child(c, args.size, args.max_gib, args.timeout) for c in CASES if args.only in (None, c)
+        run_child(c, args.size, args.max_gib, args.timeout, not args.no_tree)
+        for c in CASES
+        if args.only in (None, c)
     ]
     notes = {str(r["palette"]) for r in results if "palette" in r}
     for n in notes:
@@ -149,8 +170,9 @@ def main() -> None:
     print(f"{args.size:g} m x {args.size:g} m maps, {RESOLUTION:g} m cells, one pass at spacing d")
     head = (
         f"{'map':<7} {'policies':>9} {'edges':>11} {'map s':>6} {'library s':>9} "
-        f"{'graph s':>7} {'lib+graph s':>11} {'search':>7} {'tree ms':>7} {'tree size':>9} "
-        f"{'peak RSS MiB: map':>17} {'library':>7} {'graph':>7} {'+tree':>9}"
+        f"{'graph s':>7} {'lib+graph s':>11} {'plan s':>6} {'expanded':>8} {'search':>7} "
+        f"{'tree s':>6} {'tree size':>9} "
+        f"{'peak RSS MiB: map':>17} {'library':>7} {'graph':>7} {'+plan':>6} {'+tree':>6}"
     )
     print(head)
     for r in results:
@@ -164,10 +186,12 @@ def main() -> None:
         print(
             f"{r['case']!s:<7} {cell('policies', 9, '.0f')} {cell('edges', 11, '.0f')} "
             f"{cell('map_s', 6, '.1f')} {cell('library_s', 9, '.1f')} {cell('graph_s', 7, '.1f')} "
-            f"{'-' if total is None else f'{total:.1f}':>11} {r.get('search_form', '-')!s:>7} "
-            f"{cell('tree_s', 7, '.1f', 1e3)} {cell('tree_size', 9, '.0f')} "
+            f"{'-' if total is None else f'{total:.1f}':>11} {cell('plan_s', 6, '.2f')} "
+            f"{cell('plan_expanded', 8, '.0f')} {r.get('search_form', '-')!s:>7} "
+            f"{cell('tree_s', 6, '.2f')} {cell('tree_size', 9, '.0f')} "
             f"{cell('rss_map_mib', 17, '.0f')} {cell('rss_library_mib', 7, '.0f')} "
-            f"{cell('rss_graph_mib', 7, '.0f')} {cell('rss_tree_mib', 9, '.0f')}"
+            f"{cell('rss_graph_mib', 7, '.0f')} {cell('rss_plan_mib', 6, '.0f')} "
+            f"{cell('rss_tree_mib', 6, '.0f')}"
         )
         if "error" in r:
             print(f"  {r['case']} failed: {r['error']}")

@@ -135,7 +135,8 @@ def _successors_of(
 
 @njit(cache=True, nogil=True)
 def _count_edges(counts: Any, forward: Any, *args: Any) -> None:
-    """Out-degree (``forward``) or in-degree of every row."""
+    """Out-degree (``forward``) or in-degree of every row, from the forward generator
+    (whose probes of the lookup table are contiguous)."""
     (
         row_type,
         row_point,
@@ -150,53 +151,37 @@ def _count_edges(counts: Any, forward: Any, *args: Any) -> None:
         type_first,
         lookup,
     ) = args
-    m = max(pred_type.size, succ_type.size, 1)
-    buf_i = np.empty(m, np.int64)
-    buf_w = np.empty(m, np.float64)
-    dummy = np.zeros(1, np.float64)
-    n = counts.size
-    for r in range(n):
+    buf = np.empty(max(succ_type.size, 1), np.int64)
+    if not forward:
+        counts[:] = 0
+    for r in range(counts.size):
+        k = _successors_of(
+            r,
+            buf,
+            row_type,
+            row_point,
+            nx,
+            ny,
+            pred_ptr,
+            pred_type,
+            succ_ptr,
+            succ_type,
+            off_x,
+            off_y,
+            type_first,
+            lookup,
+        )
         if forward:
-            counts[r] = _successors_of(
-                r,
-                buf_i,
-                row_type,
-                row_point,
-                nx,
-                ny,
-                pred_ptr,
-                pred_type,
-                succ_ptr,
-                succ_type,
-                off_x,
-                off_y,
-                type_first,
-                lookup,
-            )
+            counts[r] = k
         else:
-            counts[r] = predecessors_of(
-                r,
-                buf_i,
-                buf_w,
-                dummy,
-                row_type,
-                row_point,
-                nx,
-                ny,
-                pred_ptr,
-                pred_type,
-                succ_ptr,
-                succ_type,
-                off_x,
-                off_y,
-                type_first,
-                lookup,
-            )
+            for a in range(k):
+                counts[buf[a]] += 1
 
 
 @njit(cache=True, nogil=True)
 def _fill_edges(indptr: Any, indices: Any, forward: Any, *args: Any) -> None:
-    """Column (``forward``) or row indices of every row's edges, ascending."""
+    """Column indices of every row's edges (``forward``), or row indices of every
+    column's, ascending, from the forward generator."""
     (
         row_type,
         row_point,
@@ -211,51 +196,34 @@ def _fill_edges(indptr: Any, indices: Any, forward: Any, *args: Any) -> None:
         type_first,
         lookup,
     ) = args
-    m = max(pred_type.size, succ_type.size, 1)
-    buf_i = np.empty(m, np.int64)
-    buf_w = np.empty(m, np.float64)
-    dummy = np.zeros(1, np.float64)
+    buf = np.empty(max(succ_type.size, 1), np.int64)
     n = indptr.size - 1
+    pos = indptr[:-1].copy()
     for r in range(n):
+        k = _successors_of(
+            r,
+            buf,
+            row_type,
+            row_point,
+            nx,
+            ny,
+            pred_ptr,
+            pred_type,
+            succ_ptr,
+            succ_type,
+            off_x,
+            off_y,
+            type_first,
+            lookup,
+        )
         if forward:
-            k = _successors_of(
-                r,
-                buf_i,
-                row_type,
-                row_point,
-                nx,
-                ny,
-                pred_ptr,
-                pred_type,
-                succ_ptr,
-                succ_type,
-                off_x,
-                off_y,
-                type_first,
-                lookup,
-            )
+            for a in range(k):
+                indices[pos[r] + a] = buf[a]
         else:
-            k = predecessors_of(
-                r,
-                buf_i,
-                buf_w,
-                dummy,
-                row_type,
-                row_point,
-                nx,
-                ny,
-                pred_ptr,
-                pred_type,
-                succ_ptr,
-                succ_type,
-                off_x,
-                off_y,
-                type_first,
-                lookup,
-            )
-        base = indptr[r]
-        for a in range(k):
-            indices[base + a] = buf_i[a]
+            for a in range(k):
+                j = buf[a]
+                indices[pos[j]] = r
+                pos[j] += 1
 
 
 # The compiled searches below fill ``dist`` (cost-to-go, inf if unreachable) and ``nxt``
@@ -617,3 +585,168 @@ def _buffers(pred_ptr: Any) -> Any:
     for t in range(pred_ptr.size - 1):
         m = max(m, pred_ptr[t + 1] - pred_ptr[t])
     return np.empty(m, np.int64), np.empty(m, np.float64)
+
+
+@njit(cache=True, nogil=True)
+def _astar(
+    starts: Any,
+    goal: int,
+    type_cost: Any,
+    h_scale: float,
+    g_cost: Any,
+    parent: Any,
+    row_type: Any,
+    row_point: Any,
+    nx: Any,
+    ny: Any,
+    pred_ptr: Any,
+    pred_type: Any,
+    succ_ptr: Any,
+    succ_type: Any,
+    off_x: Any,
+    off_y: Any,
+    type_first: Any,
+    lookup: Any,
+) -> Any:
+    """A* from ``starts`` to ``goal`` on the edges generated forward from the lattice.
+
+    The heuristic of policy i is ``h_scale`` times the lattice distance (in cells) from
+    its start point to the goal's: a lower bound of its cost-to-go when no policy
+    covers more than 1 / ``h_scale`` cells per unit of cost, and consistent. Fills
+    ``g_cost`` (cost from the nearest start, inf where not reached) and ``parent``
+    (−1 at the starts); returns (status, policies expanded). A binary heap of
+    (f, −g, row) with lazy deletion: ties go to the deeper, then the smaller row.
+    """
+    n = g_cost.size
+    for k in range(n):
+        g_cost[k] = np.inf
+        parent[k] = -1
+    closed = np.zeros(n, np.bool_)
+    gy = row_point[goal] // nx
+    gx = row_point[goal] - gy * nx
+    cap = 1024
+    hf = np.empty(cap, np.float64)
+    hg = np.empty(cap, np.float64)
+    hn = np.empty(cap, np.int64)
+    size = 0
+    buf = np.empty(max(succ_type.size, 1), np.int64)
+    for s in starts:
+        if g_cost[s] == 0.0:
+            continue
+        g_cost[s] = 0.0
+        py = row_point[s] // nx
+        px = row_point[s] - py * nx
+        f = h_scale * np.hypot(px - gx, py - gy)
+        if size == cap:
+            cap *= 2
+            hf2 = np.empty(cap, np.float64)
+            hg2 = np.empty(cap, np.float64)
+            hn2 = np.empty(cap, np.int64)
+            hf2[:size] = hf[:size]
+            hg2[:size] = hg[:size]
+            hn2[:size] = hn[:size]
+            hf, hg, hn = hf2, hg2, hn2
+        p = size
+        size += 1
+        while p > 0:
+            q = (p - 1) >> 1
+            if hf[q] > f or (hf[q] == f and (hg[q] > 0.0 or (hg[q] == 0.0 and hn[q] > s))):
+                hf[p] = hf[q]
+                hg[p] = hg[q]
+                hn[p] = hn[q]
+                p = q
+            else:
+                break
+        hf[p] = f
+        hg[p] = 0.0
+        hn[p] = s
+    expanded = 0
+    while size > 0:
+        i = hn[0]
+        gi = -hg[0]
+        size -= 1
+        if size > 0:
+            vf = hf[size]
+            vg = hg[size]
+            vn = hn[size]
+            p = 0
+            while True:
+                c = 2 * p + 1
+                if c >= size:
+                    break
+                if c + 1 < size and (
+                    hf[c + 1] < hf[c]
+                    or (
+                        hf[c + 1] == hf[c]
+                        and (hg[c + 1] < hg[c] or (hg[c + 1] == hg[c] and hn[c + 1] < hn[c]))
+                    )
+                ):
+                    c += 1
+                if hf[c] < vf or (hf[c] == vf and (hg[c] < vg or (hg[c] == vg and hn[c] < vn))):
+                    hf[p] = hf[c]
+                    hg[p] = hg[c]
+                    hn[p] = hn[c]
+                    p = c
+                else:
+                    break
+            hf[p] = vf
+            hg[p] = vg
+            hn[p] = vn
+        if closed[i] or gi > g_cost[i]:
+            continue
+        closed[i] = True
+        expanded += 1
+        if i == goal:
+            return _DONE, expanded
+        w = type_cost[row_type[i]]
+        if not w >= 0.0:
+            return _NEGATIVE, expanded
+        m = _successors_of(
+            i,
+            buf,
+            row_type,
+            row_point,
+            nx,
+            ny,
+            pred_ptr,
+            pred_type,
+            succ_ptr,
+            succ_type,
+            off_x,
+            off_y,
+            type_first,
+            lookup,
+        )
+        for a in range(m):
+            j = buf[a]
+            d = gi + w
+            if d < g_cost[j]:
+                g_cost[j] = d
+                parent[j] = i
+                py = row_point[j] // nx
+                px = row_point[j] - py * nx
+                f = d + h_scale * np.hypot(px - gx, py - gy)
+                if size == cap:
+                    cap *= 2
+                    hf2 = np.empty(cap, np.float64)
+                    hg2 = np.empty(cap, np.float64)
+                    hn2 = np.empty(cap, np.int64)
+                    hf2[:size] = hf[:size]
+                    hg2[:size] = hg[:size]
+                    hn2[:size] = hn[:size]
+                    hf, hg, hn = hf2, hg2, hn2
+                p = size
+                size += 1
+                while p > 0:
+                    q = (p - 1) >> 1
+                    if hf[q] > f or (hf[q] == f and (hg[q] > -d or (hg[q] == -d and hn[q] > j))):
+                        hf[p] = hf[q]
+                        hg[p] = hg[q]
+                        hn[p] = hn[q]
+                        p = q
+                    else:
+                        break
+                hf[p] = f
+                hg[p] = -d
+                hn[p] = j
+    return _DONE, expanded

@@ -199,8 +199,6 @@ class PreparesGraph:
     library : PolicyLibrary
     lattice_edges : LatticeEdges
         The implicit form of the edges.
-    num_edges : int
-        E, the number of gracefully prepares edges.
     atol : float
         Tolerance of the state continuity checks.
 
@@ -212,7 +210,6 @@ class PreparesGraph:
 
     library: PolicyLibrary
     lattice_edges: LatticeEdges
-    num_edges: int
     atol: float = DEFAULT_ATOL
     _cache: dict[str, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
 
@@ -223,6 +220,21 @@ class PreparesGraph:
     def num_nodes(self) -> int:
         """N, the number of library policies."""
         return len(self.library)
+
+    @property
+    def num_edges(self) -> int:
+        """E, the number of gracefully prepares edges (counted on first use, O(N + E))."""
+        out = self._cache.get("num_edges")
+        if out is None:
+            a = self._cache.get("csr")
+            if a is not None:
+                out = int(a.nnz)
+            else:
+                counts = np.empty(self.num_nodes, dtype=np.int64)
+                _count_edges(counts, True, *self.lattice_edges.kernel_args())
+                out = int(counts.sum())
+            self._cache["num_edges"] = out
+        return int(out)
 
     @property
     def adjacency(self) -> sparse.csr_matrix:
@@ -466,11 +478,7 @@ def build_graph(library: PolicyLibrary, *, atol: float = DEFAULT_ATOL) -> Prepar
         type_first=type_first,
         table=table,
     )
-    counts = np.empty(len(library), dtype=np.int64)
-    _count_edges(counts, True, *edges.kernel_args())
-    return PreparesGraph(
-        library=library, lattice_edges=edges, num_edges=int(counts.sum()), atol=float(atol)
-    )
+    return PreparesGraph(library=library, lattice_edges=edges, atol=float(atol))
 
 
 def _materialise(graph: PreparesGraph, *, forward: bool) -> tuple[NDArray[Any], NDArray[Any]]:

@@ -44,12 +44,13 @@ from typing import Any
 
 import numpy as np
 import scipy.sparse
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from gracenav._search import (
     _NEGATIVE,
     _REVISITED,
     _TOO_MANY_COSTS,
+    _astar,
     _search_heap,
     _search_heap_lattice,
     _search_queues,
@@ -58,7 +59,7 @@ from gracenav._search import (
 from gracenav.errors import ConfigError, PlanningError
 from gracenav.graph import PreparesGraph
 
-__all__ = ["CostCriterion", "PolicyTree", "plan_tree"]
+__all__ = ["CostCriterion", "PolicyPath", "PolicyTree", "plan_path", "plan_tree"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -196,3 +197,104 @@ def plan_tree(
             "or path lengths (m), both >= 0"
         )
     return PolicyTree(goal=int(goal), next_policy=nxt, cost_to_go=dist, criterion=crit)
+
+
+@dataclass(frozen=True)
+class PolicyPath:
+    """An optimal sequence of library policies from a start to a goal policy (A*).
+
+    Attributes
+    ----------
+    policies : ndarray of int, shape (K,)
+        Library rows from the start to the goal policy, both included; empty if the
+        goal cannot be reached.
+    cost : float
+        Cost (s or m) of executing the policies before the goal policy: the tree's
+        ``cost_to_go`` of the start, up to rounding; inf if unreachable.
+    expanded : int
+        Policies the search expanded (a measure of its work).
+    criterion : CostCriterion
+    """
+
+    policies: IntArray
+    cost: float
+    expanded: int
+    criterion: CostCriterion
+
+    @property
+    def reachable(self) -> bool:
+        """Whether the goal was reached."""
+        return bool(self.policies.size)
+
+
+def plan_path(
+    graph: PreparesGraph,
+    start: int | ArrayLike,
+    goal: int,
+    *,
+    criterion: CostCriterion | str = CostCriterion.TIME,
+) -> PolicyPath:
+    """A* from the start policy (or the cheapest of several) to ``goal`` on the graph's
+    edges generated from the lattice: a point-to-point plan without a whole tree.
+
+    The heuristic is the straight-line lattice distance from a policy's start to the
+    goal policy's start times the smallest cost per cell of any policy that has
+    successors (duration or path length over its end offset): a lower bound of the
+    cost-to-go that grows by at most the cost of each edge, so the path is optimal and
+    its cost equals the tree's cost-to-go up to rounding. Equally good paths are
+    broken by deeper search first, then smaller library rows.
+
+    Parameters
+    ----------
+    graph : PreparesGraph
+    start : int or array_like of int
+        Library row(s) of the start policy (e.g. those whose S contains the robot).
+    goal : int
+        Library row of the goal policy.
+    criterion : CostCriterion or str
+        Cost of a policy: its duration ("time", s) or path length ("distance", m).
+
+    Returns
+    -------
+    PolicyPath
+
+    Raises
+    ------
+    PlanningError
+        If a start or the goal is not a library index.
+    ConfigError
+        If a policy cost the search meets is negative or NaN.
+    """
+    crit = CostCriterion(criterion) if isinstance(criterion, str) else criterion
+    n = graph.num_nodes
+    starts = np.atleast_1d(np.asarray(start, dtype=np.int64))
+    for k in (*starts.tolist(), goal):
+        if not 0 <= k < n:
+            raise PlanningError(f"policy index {k} is outside the library (0..{n - 1})")
+    edges = graph.lattice_edges
+    type_cost = np.ascontiguousarray(graph.type_cost(crit.value), dtype=np.float64)
+    cells = np.hypot(*edges.offset.T.astype(np.float64))
+    moving = (np.diff(edges.succ_ptr) > 0) & (cells > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        per_cell = type_cost[moving] / cells[moving]
+    scale = float(per_cell.min()) if per_cell.size else 0.0
+    # A margin far above rounding keeps the bound below every true cost-to-go.
+    scale = max(scale, 0.0) * (1.0 - 1e-9) if np.isfinite(scale) else 0.0
+    g_cost: FloatArray = np.empty(n, dtype=np.float64)
+    parent: IntArray = np.empty(n, dtype=np.int64)
+    status, expanded = _astar(
+        starts, int(goal), type_cost, scale, g_cost, parent, *edges.kernel_args()
+    )
+    if status == _NEGATIVE:
+        raise ConfigError(
+            "a policy has a negative or NaN cost; costs are policy durations (s) or path "
+            "lengths (m), both >= 0"
+        )
+    if not np.isfinite(g_cost[goal]):
+        return PolicyPath(np.zeros(0, np.int64), float("inf"), int(expanded), crit)
+    path = [int(goal)]
+    while parent[path[-1]] >= 0:
+        path.append(int(parent[path[-1]]))
+    return PolicyPath(
+        np.array(path[::-1], dtype=np.int64), float(g_cost[goal]), int(expanded), crit
+    )
