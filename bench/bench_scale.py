@@ -45,10 +45,11 @@ def child(case: str, size: float, tree_stage: bool) -> dict[str, float | int | s
     import numpy as np
     from bench_library import get_palette
 
+    from gracenav.errors import ConfigError, MapError
     from gracenav.graph import build_graph
     from gracenav.library import build_library
     from gracenav.planning import plan_path, plan_tree
-    from gracenav.world import load_map, office_map
+    from gracenav.world import WorldMap, load_map, office_map
 
     out: dict[str, float | int | str] = {"case": case, "rss_start_mib": _rss_mib()}
     palette, note = get_palette()
@@ -57,15 +58,27 @@ def child(case: str, size: float, tree_stage: bool) -> dict[str, float | int | s
     if case == "office":
         wmap = office_map(size, RESOLUTION, seed=0)
     else:
-        wmap = load_map(
-            {"bounds": [[0.0, 0.0], [size, size]], "obstacles": [], "resolution": RESOLUTION}
-        )
+        try:
+            wmap = load_map(
+                {"bounds": [[0.0, 0.0], [size, size]], "obstacles": [], "resolution": RESOLUTION}
+            )
+        except MapError:  # above the loader's cell limit: the same grid, built directly
+            cells = round(size / RESOLUTION)
+            wmap = WorldMap(
+                origin=np.zeros(2), resolution=RESOLUTION, occupied=np.zeros((cells, cells), bool)
+            )
     _ = wmap.clearance_grid
     out["map_s"] = time.perf_counter() - t0
     out["rss_map_mib"] = _rss_mib()
     print(json.dumps(out), flush=True)
     t0 = time.perf_counter()
-    lib = build_library(palette, wmap, max_halvings=0)
+    try:
+        lib = build_library(palette, wmap, max_halvings=0)
+    except ConfigError as exc:  # refused up front: over the memory limit
+        out["refused"] = str(exc)
+        out["refused_s"] = time.perf_counter() - t0
+        out["rss_library_mib"] = _rss_mib()
+        return out
     out["library_s"] = time.perf_counter() - t0
     out["rss_library_mib"] = _rss_mib()
     out["policies"] = len(lib)
@@ -195,6 +208,8 @@ def main() -> None:
         )
         if "error" in r:
             print(f"  {r['case']} failed: {r['error']}")
+        if "refused" in r:
+            print(f"  {r['case']} refused after {float(r['refused_s']):.1f} s: {r['refused']}")  # type: ignore[arg-type]
     print("peak RSS is ru_maxrss of the map's own process, cumulative over the stages")
 
 
