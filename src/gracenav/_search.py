@@ -587,12 +587,24 @@ def _buffers(pred_ptr: Any) -> Any:
     return np.empty(m, np.int64), np.empty(m, np.float64)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _gauge(dx: Any, dy: Any, h_x: Any, h_y: Any) -> float:
+    """max(0, max_f h_x[f] dx + h_y[f] dy): the A* heuristic of a displacement."""
+    h = 0.0
+    for f in range(h_x.size):
+        v = h_x[f] * dx + h_y[f] * dy
+        if v > h:
+            h = v
+    return h
+
+
 @njit(cache=True, nogil=True)
 def _astar(
     starts: Any,
     goal: int,
     type_cost: Any,
-    h_scale: float,
+    h_x: Any,
+    h_y: Any,
     g_cost: Any,
     parent: Any,
     row_type: Any,
@@ -610,9 +622,10 @@ def _astar(
 ) -> Any:
     """A* from ``starts`` to ``goal`` on the edges generated forward from the lattice.
 
-    The heuristic of policy i is ``h_scale`` times the lattice distance (in cells) from
-    its start point to the goal's: a lower bound of its cost-to-go when no policy
-    covers more than 1 / ``h_scale`` cells per unit of cost, and consistent. Fills
+    The heuristic of policy i is max(0, max_f h_x[f] Δx + h_y[f] Δy) for the lattice
+    displacement (Δx, Δy) (cells) from its start point to the goal's: the gauge of the
+    polygon of (end offset / cost) of the policies, a lower bound of the cost-to-go that
+    is consistent (see :func:`gracenav.planning.plan_path`). Fills
     ``g_cost`` (cost from the nearest start, inf where not reached) and ``parent``
     (−1 at the starts); returns (status, policies expanded). A binary heap of
     (f, −g, row) with lazy deletion: ties go to the deeper, then the smaller row.
@@ -636,7 +649,7 @@ def _astar(
         g_cost[s] = 0.0
         py = row_point[s] // nx
         px = row_point[s] - py * nx
-        f = h_scale * np.hypot(px - gx, py - gy)
+        f = _gauge(gx - px, gy - py, h_x, h_y)
         if size == cap:
             cap *= 2
             hf2 = np.empty(cap, np.float64)
@@ -725,7 +738,7 @@ def _astar(
                 parent[j] = i
                 py = row_point[j] // nx
                 px = row_point[j] - py * nx
-                f = d + h_scale * np.hypot(px - gx, py - gy)
+                f = d + _gauge(gx - px, gy - py, h_x, h_y)
                 if size == cap:
                     cap *= 2
                     hf2 = np.empty(cap, np.float64)

@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse
 from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import ConvexHull, QhullError
 
 from gracenav._search import (
     _NEGATIVE,
@@ -237,12 +238,16 @@ def plan_path(
     """A* from the start policy (or the cheapest of several) to ``goal`` on the graph's
     edges generated from the lattice: a point-to-point plan without a whole tree.
 
-    The heuristic is the straight-line lattice distance from a policy's start to the
-    goal policy's start times the smallest cost per cell of any policy that has
-    successors (duration or path length over its end offset): a lower bound of the
-    cost-to-go that grows by at most the cost of each edge, so the path is optimal and
-    its cost equals the tree's cost-to-go up to rounding. Equally good paths are
-    broken by deeper search first, then smaller library rows.
+    The heuristic of a policy is the gauge g(D) = min {λ >= 0 : D ∈ λ P} of the lattice
+    displacement D from its start to the goal policy's start, P the convex hull of the
+    origin and of o / c for every policy type with successors (o its end offset in
+    cells, c its cost). A path of policies with costs c_k covers Σ o_k, and g is
+    sublinear with g(o_k) <= c_k, so g(D) is a lower bound of the cost-to-go that grows
+    by at most the cost of each edge (consistent): the path is optimal and its cost
+    equals the tree's cost-to-go up to rounding. g is at least the straight-line
+    distance over the fastest type's cells per unit cost, and larger in directions
+    no single type moves in. Equally good paths are broken by deeper search first,
+    then smaller library rows.
 
     Parameters
     ----------
@@ -273,17 +278,11 @@ def plan_path(
             raise PlanningError(f"policy index {k} is outside the library (0..{n - 1})")
     edges = graph.lattice_edges
     type_cost = np.ascontiguousarray(graph.type_cost(crit.value), dtype=np.float64)
-    cells = np.hypot(*edges.offset.T.astype(np.float64))
-    moving = (np.diff(edges.succ_ptr) > 0) & (cells > 0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        per_cell = type_cost[moving] / cells[moving]
-    scale = float(per_cell.min()) if per_cell.size else 0.0
-    # A margin far above rounding keeps the bound below every true cost-to-go.
-    scale = max(scale, 0.0) * (1.0 - 1e-9) if np.isfinite(scale) else 0.0
+    h_x, h_y = _gauge_facets(edges.offset, type_cost, np.diff(edges.succ_ptr) > 0)
     g_cost: FloatArray = np.empty(n, dtype=np.float64)
     parent: IntArray = np.empty(n, dtype=np.int64)
     status, expanded = _astar(
-        starts, int(goal), type_cost, scale, g_cost, parent, *edges.kernel_args()
+        starts, int(goal), type_cost, h_x, h_y, g_cost, parent, *edges.kernel_args()
     )
     if status == _NEGATIVE:
         raise ConfigError(
@@ -297,4 +296,36 @@ def plan_path(
         path.append(int(parent[path[-1]]))
     return PolicyPath(
         np.array(path[::-1], dtype=np.int64), float(g_cost[goal]), int(expanded), crit
+    )
+
+
+def _gauge_facets(
+    offset: IntArray, type_cost: FloatArray, has_successors: NDArray[np.bool_]
+) -> tuple[FloatArray, FloatArray]:
+    """Coefficients (h_x, h_y) of the gauge of P (see :func:`plan_path`): one pair per
+    edge of P not through the origin, g(D) = max(0, max_f h_x[f] D_x + h_y[f] D_y); none
+    (g = 0) when no type with successors both moves and costs something."""
+    cells = offset.astype(np.float64)
+    use = has_successors & np.any(offset != 0, axis=1) & (type_cost > 0)
+    empty = np.zeros(0, dtype=np.float64)
+    if np.any(has_successors & np.any(offset != 0, axis=1) & (type_cost <= 0)):
+        return empty, empty  # a free move: no positive lower bound
+    pts = np.unique(cells[use] / type_cost[use, None], axis=0)
+    if pts.shape[0] < 2:
+        return empty, empty
+    pts = np.concatenate([pts, np.zeros((1, 2))])
+    try:
+        hull = ConvexHull(pts)
+    except QhullError:  # collinear: bound by the farthest point along every direction
+        far = float(np.hypot(*pts.T).max())
+        ang = np.linspace(0.0, 2.0 * np.pi, 64, endpoint=False)
+        return np.cos(ang) * np.cos(np.pi / 64) / far, np.sin(ang) * np.cos(np.pi / 64) / far
+    eq = hull.equations  # a x + b y + c <= 0 inside, (a, b) a unit normal
+    keep = eq[:, 2] < -1e-12  # edges through the origin bound nothing
+    b = -eq[keep, 2]
+    # A margin far above rounding keeps the bound below every true cost-to-go.
+    margin = 1.0 - 1e-9
+    return (
+        np.ascontiguousarray(margin * eq[keep, 0] / b),
+        np.ascontiguousarray(margin * eq[keep, 1] / b),
     )
