@@ -136,6 +136,7 @@ def run_child(
                 case,
                 "--size",
                 str(size),
+                *([] if tree else ["--no-tree"]),
             ],
             capture_output=True,
             text=True,
