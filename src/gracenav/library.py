@@ -36,7 +36,7 @@ from functools import cached_property
 from typing import Any
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 from numpy.typing import ArrayLike, NDArray
 from scipy import sparse
 
@@ -968,7 +968,7 @@ def _clearance_at(
     return max(min(best, edge), 0.0)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _check_sweeps_kernel(
     valid: Any,
     points: Any,
@@ -995,7 +995,7 @@ def _check_sweeps_kernel(
 ) -> None:
     """Mark the pairs whose swept D' is not clear: a pair is valid iff in every group
     either the bounding disc or every sample is clear (see :func:`build_library`)."""
-    for a in range(pair_type.size):
+    for a in prange(pair_type.size):  # independent pairs: no shared writes
         t = pair_type[a]
         qx = points[pair_point[a], 0]
         qy = points[pair_point[a], 1]
