@@ -22,6 +22,13 @@ displacement over the spacing, rounded, accepted if within ``atol``), and the
 successors are the policies of compatible types starting at that cell, found by a
 table lookup on (type, lattice point). No pair of library policies is ever compared.
 
+The edges are not stored: :func:`build_graph` keeps the type tables, each policy's type
+and point, and the lookup table (:class:`LatticeEdges`, about 8 bytes per policy plus
+4 bytes per (point, type) pair), O(N + T²) to build. The successors or predecessors of
+a policy are generated on demand (:mod:`gracenav._search`), and the sparse matrices are
+built from them on first use. On a 100 m open hall this is the difference between
+175 M edges (about 5 GiB with both costs and the reversed graph) and 140 MiB.
+
 Edge costs: entry (i, j) of the adjacency matrix is the cost of *executing policy i*
 (then switching to j): its duration t_f (s) for the fastest-time criterion, or the
 XY length of its reference path (m) for the shortest-path criterion. The

@@ -25,6 +25,13 @@ or whose costs are not those of their source policies (a policy reached again at
 cost), are searched with an indexed binary heap instead: the same costs, and with
 positive costs the same next policies. Each search allocates about 17 bytes per policy.
 
+On a graph that stores no edges (:class:`gracenav.graph.PreparesGraph` given instead
+of a matrix) the same search generates the edges into each settled policy from the
+lattice, in the same order (ascending rows), so the tree is the same; it costs no
+memory per edge but about ten times the time (each predecessor is a probe of the
+lookup table). For a point-to-point task on a building-scale map, :func:`plan_path`
+searches forward from the start with A* instead of building the whole tree.
+
 Equally good next policies are common on a lattice (two paths around a square), and
 the tree does not depend on the order in which the search meets them (scipy's Dijkstra
 keeps whichever it settles first): ``next_policy[i]`` is, among the successors j with
