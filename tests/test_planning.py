@@ -385,3 +385,30 @@ def test_point_to_point_paths_cost_the_trees_cost_to_go() -> None:
     assert plan_path(graph, goal, goal).cost == 0.0
     with pytest.raises(PlanningError, match="outside the library"):
         plan_path(graph, len(lib), goal)
+
+
+def test_a_replan_joining_an_earlier_path_costs_the_trees_cost_to_go() -> None:
+    """With ``via`` (an optimal path to the goal), A* stops where joining it is
+    cheapest: still the tree's cost-to-go, and the path follows ``via`` from there."""
+    lib, graph = small_library_graph()
+    trims = lib.trim_indices()
+    rng = np.random.default_rng(6)
+    checked = 0
+    for goal in rng.choice(trims, 4, replace=False):
+        tree = plan_tree(graph, int(goal))
+        reach = np.flatnonzero(np.isfinite(tree.cost_to_go))
+        if reach.size < 3:
+            continue
+        for first, second in rng.choice(reach, (6, 2)):
+            via = plan_path(graph, int(first), int(goal))
+            path = plan_path(graph, int(second), int(goal), via=via)
+            np.testing.assert_allclose(path.cost, tree.cost_to_go[second], rtol=1e-12, atol=1e-12)
+            assert path.policies[0] == second and path.policies[-1] == goal
+            for a, b in itertools.pairwise(path.policies):
+                assert b in graph.successors(int(a))
+            checked += 1
+    assert checked > 6
+    with pytest.raises(ConfigError, match="via"):
+        plan_path(
+            graph, int(trims[1]), int(trims[0]), via=plan_path(graph, int(trims[1]), int(trims[1]))
+        )

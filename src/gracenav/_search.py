@@ -602,6 +602,8 @@ def _gauge(dx: Any, dy: Any, h_x: Any, h_y: Any) -> float:
 def _astar(
     starts: Any,
     goal: int,
+    join_rows: Any,
+    join_cost: Any,
     type_cost: Any,
     h_x: Any,
     h_y: Any,
@@ -627,7 +629,13 @@ def _astar(
     polygon of (end offset / cost) of the policies, a lower bound of the cost-to-go that
     is consistent (see :func:`gracenav.planning.plan_path`). Fills
     ``g_cost`` (cost from the nearest start, inf where not reached) and ``parent``
-    (−1 at the starts); returns (status, policies expanded). A binary heap of
+    (−1 at the starts); returns (status, policies expanded, row where the search
+    joined a known path, −1 if none).
+
+    ``join_rows`` (ascending) are policies of known optimal cost-to-go ``join_cost``
+    (the goal with 0, or the policies of an earlier optimal path): a search that
+    settles one does not expand it but queues the path through it at cost g + its
+    cost-to-go, and stops when such an entry is the cheapest in the queue. A binary heap of
     (f, −g, row) with lazy deletion: ties go to the deeper, then the smaller row.
     """
     n = g_cost.size
@@ -705,15 +713,44 @@ def _astar(
             hf[p] = vf
             hg[p] = vg
             hn[p] = vn
+        if i < 0:  # a queued join: no open policy can do better
+            return _DONE, expanded, join_rows[-i - 1]
         if closed[i] or gi > g_cost[i]:
             continue
         closed[i] = True
         expanded += 1
-        if i == goal:
-            return _DONE, expanded
+        k = np.searchsorted(join_rows, i)
+        if k < join_rows.size and join_rows[k] == i:
+            if join_cost[k] == 0.0:
+                return _DONE, expanded, i
+            d = gi + join_cost[k]
+            if size == cap:
+                cap *= 2
+                hf2 = np.empty(cap, np.float64)
+                hg2 = np.empty(cap, np.float64)
+                hn2 = np.empty(cap, np.int64)
+                hf2[:size] = hf[:size]
+                hg2[:size] = hg[:size]
+                hn2[:size] = hn[:size]
+                hf, hg, hn = hf2, hg2, hn2
+            p = size
+            size += 1
+            while p > 0:
+                q = (p - 1) >> 1
+                if hf[q] > d or (hf[q] == d and (hg[q] > -d or (hg[q] == -d and hn[q] > -k - 1))):
+                    hf[p] = hf[q]
+                    hg[p] = hg[q]
+                    hn[p] = hn[q]
+                    p = q
+                else:
+                    break
+            hf[p] = d
+            hg[p] = -d
+            hn[p] = -k - 1
+            continue
         w = type_cost[row_type[i]]
         if not w >= 0.0:
-            return _NEGATIVE, expanded
+            return _NEGATIVE, expanded, -1
         m = _successors_of(
             i,
             buf,
@@ -762,4 +799,4 @@ def _astar(
                 hf[p] = f
                 hg[p] = -d
                 hn[p] = j
-    return _DONE, expanded
+    return _DONE, expanded, -1

@@ -241,6 +241,7 @@ def plan_path(
     goal: int,
     *,
     criterion: CostCriterion | str = CostCriterion.TIME,
+    via: PolicyPath | None = None,
 ) -> PolicyPath:
     """A* from the start policy (or the cheapest of several) to ``goal`` on the graph's
     edges generated from the lattice: a point-to-point plan without a whole tree.
@@ -265,6 +266,11 @@ def plan_path(
         Library row of the goal policy.
     criterion : CostCriterion or str
         Cost of a policy: its duration ("time", s) or path length ("distance", m).
+    via : PolicyPath, optional
+        An earlier optimal path to ``goal`` (same criterion), e.g. the one a push took
+        the robot off: every suffix of it is optimal, so the search stops where joining
+        it is cheapest and no open policy can do better (a local replan), and the
+        result follows it from there.
 
     Returns
     -------
@@ -286,24 +292,49 @@ def plan_path(
     edges = graph.lattice_edges
     type_cost = np.ascontiguousarray(graph.type_cost(crit.value), dtype=np.float64)
     h_x, h_y = _gauge_facets(edges.offset, type_cost, np.diff(edges.succ_ptr) > 0)
+    if via is not None:
+        if via.criterion is not crit or not via.reachable or int(via.policies[-1]) != goal:
+            raise ConfigError("via must be a reachable path to the same goal policy and criterion")
+        steps = type_cost[edges.row_type[via.policies[:-1]]]
+        to_go = via.cost - np.concatenate([[0.0], np.cumsum(steps)])
+        to_go[-1] = 0.0
+        order = np.argsort(via.policies)
+        join_rows = np.ascontiguousarray(via.policies[order], dtype=np.int64)
+        join_cost = np.ascontiguousarray(np.maximum(to_go[order], 0.0), dtype=np.float64)
+    else:
+        join_rows = np.array([goal], dtype=np.int64)
+        join_cost = np.zeros(1, dtype=np.float64)
     g_cost: FloatArray = np.empty(n, dtype=np.float64)
     parent: IntArray = np.empty(n, dtype=np.int64)
-    status, expanded = _astar(
-        starts, int(goal), type_cost, h_x, h_y, g_cost, parent, *edges.kernel_args()
+    status, expanded, joined = _astar(
+        starts,
+        int(goal),
+        join_rows,
+        join_cost,
+        type_cost,
+        h_x,
+        h_y,
+        g_cost,
+        parent,
+        *edges.kernel_args(),
     )
     if status == _NEGATIVE:
         raise ConfigError(
             "a policy has a negative or NaN cost; costs are policy durations (s) or path "
             "lengths (m), both >= 0"
         )
-    if not np.isfinite(g_cost[goal]):
+    if joined < 0:
         return PolicyPath(np.zeros(0, np.int64), float("inf"), int(expanded), crit)
-    path = [int(goal)]
+    path = [int(joined)]
     while parent[path[-1]] >= 0:
         path.append(int(parent[path[-1]]))
-    return PolicyPath(
-        np.array(path[::-1], dtype=np.int64), float(g_cost[goal]), int(expanded), crit
-    )
+    prefix = np.array(path[::-1], dtype=np.int64)
+    k = int(np.searchsorted(join_rows, joined))
+    cost = float(g_cost[joined] + join_cost[k])
+    if via is not None and joined != goal:
+        at = int(np.flatnonzero(via.policies == joined)[0])
+        prefix = np.concatenate([prefix, via.policies[at + 1 :]])
+    return PolicyPath(prefix, cost, int(expanded), crit)
 
 
 def _gauge_facets(
