@@ -7,7 +7,7 @@ Two maps at 5 cm resolution, one pass at spacing d (``max_halvings=0``):
 
 Each map runs in its own subprocess so that its peak resident memory
 (``resource.getrusage(RUSAGE_SELF).ru_maxrss``) is its own. The child reports the peak
-after each stage (map and clearance field, library, graph, reversed graph and one tree)
+after each stage (map and clearance field, library, graph, one tree)
 and the wall time of each; the parent prints a table. A child that runs out of the
 address-space limit (``--max-gib``) or the time limit is reported, not fatal.
 
@@ -36,35 +36,49 @@ def _rss_mib() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # Linux: KiB
 
 
-def child(case: str) -> dict[str, float | int | str]:
-    """Build map, library, graph, reversed graph and one tree; peak RSS after each.
+def child(case: str, size: float, tree_stage: bool) -> dict[str, float | int | str]:
+    """Build map, library, graph and one tree (the first, as a controller plans it:
+    :meth:`PreparesGraph.search_form`); peak RSS after each.
 
     The results so far are printed (one JSON line) after every stage, so a stage that
     fails still leaves the earlier ones to the parent."""
     import numpy as np
     from bench_library import get_palette
 
+    from gracenav.errors import ConfigError, MapError
     from gracenav.graph import build_graph
     from gracenav.library import build_library
-    from gracenav.planning import plan_tree
-    from gracenav.world import load_map, office_map
+    from gracenav.planning import plan_path, plan_tree
+    from gracenav.world import WorldMap, load_map, office_map
 
     out: dict[str, float | int | str] = {"case": case, "rss_start_mib": _rss_mib()}
     palette, note = get_palette()
     out["palette"] = note
     t0 = time.perf_counter()
     if case == "office":
-        wmap = office_map(SIZE, RESOLUTION, seed=0)
+        wmap = office_map(size, RESOLUTION, seed=0)
     else:
-        wmap = load_map(
-            {"bounds": [[0.0, 0.0], [SIZE, SIZE]], "obstacles": [], "resolution": RESOLUTION}
-        )
+        try:
+            wmap = load_map(
+                {"bounds": [[0.0, 0.0], [size, size]], "obstacles": [], "resolution": RESOLUTION}
+            )
+        except MapError:  # above the loader's cell limit: the same grid, built directly
+            cells = round(size / RESOLUTION)
+            wmap = WorldMap(
+                origin=np.zeros(2), resolution=RESOLUTION, occupied=np.zeros((cells, cells), bool)
+            )
     _ = wmap.clearance_grid
     out["map_s"] = time.perf_counter() - t0
     out["rss_map_mib"] = _rss_mib()
     print(json.dumps(out), flush=True)
     t0 = time.perf_counter()
-    lib = build_library(palette, wmap, max_halvings=0)
+    try:
+        lib = build_library(palette, wmap, max_halvings=0)
+    except ConfigError as exc:  # refused up front: over the memory limit
+        out["refused"] = str(exc)
+        out["refused_s"] = time.perf_counter() - t0
+        out["rss_library_mib"] = _rss_mib()
+        return out
     out["library_s"] = time.perf_counter() - t0
     out["rss_library_mib"] = _rss_mib()
     out["policies"] = len(lib)
@@ -75,20 +89,37 @@ def child(case: str) -> dict[str, float | int | str]:
     out["rss_graph_mib"] = _rss_mib()
     out["edges"] = graph.num_edges
     print(json.dumps(out), flush=True)
-    t0 = time.perf_counter()
-    csc = graph.csc("time")
-    out["csc_s"] = time.perf_counter() - t0
     trims = lib.trim_indices()
-    goal = int(trims[np.argmin(np.linalg.norm(lib.start_xy[trims] - SIZE / 2, axis=1))])
+    goal = int(trims[np.argmin(np.linalg.norm(lib.start_xy[trims] - size / 2, axis=1))])
+    # The first point-to-point plan: A* from the trim nearest a corner region (the
+    # nearest whose plan reaches the goal) to the goal near the centre.
+    near = trims[np.argsort(np.linalg.norm(lib.start_xy[trims] - 0.1 * size, axis=1))]
     t0 = time.perf_counter()
-    tree = plan_tree(csc, goal)
+    for start in near[:20]:
+        path = plan_path(graph, int(start), goal)
+        if path.reachable:
+            break
+    out["plan_s"] = time.perf_counter() - t0
+    out["plan_cost"] = path.cost
+    out["plan_expanded"] = path.expanded
+    out["plan_policies"] = int(path.policies.size)
+    out["rss_plan_mib"] = _rss_mib()
+    print(json.dumps(out), flush=True)
+    if not tree_stage:
+        return out
+    form = graph.search_form("time")
+    out["search_form"] = "stored" if form is not graph else "lattice"
+    t0 = time.perf_counter()
+    tree = plan_tree(form, goal)
     out["tree_s"] = time.perf_counter() - t0
     out["tree_size"] = int(np.isfinite(tree.cost_to_go).sum())
     out["rss_tree_mib"] = _rss_mib()
     return out
 
 
-def run_child(case: str, max_gib: float, timeout: float) -> dict[str, object]:
+def run_child(
+    case: str, size: float, max_gib: float, timeout: float, tree: bool
+) -> dict[str, object]:
     here = os.path.dirname(os.path.abspath(__file__))
     limit = int(max_gib * 2**30)
 
@@ -98,7 +129,15 @@ def run_child(case: str, max_gib: float, timeout: float) -> dict[str, object]:
     t0 = time.perf_counter()
     try:
         proc = subprocess.run(
-            [sys.executable, os.path.join(here, "bench_scale.py"), "--child", case],
+            [
+                sys.executable,
+                os.path.join(here, "bench_scale.py"),
+                "--child",
+                case,
+                "--size",
+                str(size),
+                *([] if tree else ["--no-tree"]),
+            ],
             capture_output=True,
             text=True,
             timeout=timeout,
@@ -127,20 +166,27 @@ def main() -> None:
     ap.add_argument("--only", choices=CASES, help="run one map only")
     ap.add_argument("--max-gib", type=float, default=8.0, help="address-space limit per map")
     ap.add_argument("--timeout", type=float, default=900.0, help="time limit per map (s)")
+    ap.add_argument("--size", type=float, default=SIZE, help="side of the square maps (m)")
+    ap.add_argument("--no-tree", action="store_true", help="skip the whole single-goal tree")
     ap.add_argument("--child", choices=CASES, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        print(json.dumps(child(args.child)))
+        print(json.dumps(child(args.child, args.size, not args.no_tree)))
         return
-    results = [run_child(c, args.max_gib, args.timeout) for c in CASES if args.only in (None, c)]
+    results = [
+        run_child(c, args.size, args.max_gib, args.timeout, not args.no_tree)
+        for c in CASES
+        if args.only in (None, c)
+    ]
     notes = {str(r["palette"]) for r in results if "palette" in r}
     for n in notes:
         print(n)
-    print(f"{SIZE:g} m x {SIZE:g} m maps, {RESOLUTION:g} m cells, one pass at spacing d")
+    print(f"{args.size:g} m x {args.size:g} m maps, {RESOLUTION:g} m cells, one pass at spacing d")
     head = (
         f"{'map':<7} {'policies':>9} {'edges':>11} {'map s':>6} {'library s':>9} "
-        f"{'graph s':>7} {'lib+graph s':>11} {'csc s':>6} {'tree ms':>7} {'tree size':>9} "
-        f"{'peak RSS MiB: map':>17} {'library':>7} {'graph':>7} {'+csc,tree':>9}"
+        f"{'graph s':>7} {'lib+graph s':>11} {'plan s':>6} {'expanded':>8} {'search':>7} "
+        f"{'tree s':>6} {'tree size':>9} "
+        f"{'peak RSS MiB: map':>17} {'library':>7} {'graph':>7} {'+plan':>6} {'+tree':>6}"
     )
     print(head)
     for r in results:
@@ -154,13 +200,17 @@ def main() -> None:
         print(
             f"{r['case']!s:<7} {cell('policies', 9, '.0f')} {cell('edges', 11, '.0f')} "
             f"{cell('map_s', 6, '.1f')} {cell('library_s', 9, '.1f')} {cell('graph_s', 7, '.1f')} "
-            f"{'-' if total is None else f'{total:.1f}':>11} {cell('csc_s', 6, '.2f')} "
-            f"{cell('tree_s', 7, '.1f', 1e3)} {cell('tree_size', 9, '.0f')} "
+            f"{'-' if total is None else f'{total:.1f}':>11} {cell('plan_s', 6, '.2f')} "
+            f"{cell('plan_expanded', 8, '.0f')} {r.get('search_form', '-')!s:>7} "
+            f"{cell('tree_s', 6, '.2f')} {cell('tree_size', 9, '.0f')} "
             f"{cell('rss_map_mib', 17, '.0f')} {cell('rss_library_mib', 7, '.0f')} "
-            f"{cell('rss_graph_mib', 7, '.0f')} {cell('rss_tree_mib', 9, '.0f')}"
+            f"{cell('rss_graph_mib', 7, '.0f')} {cell('rss_plan_mib', 6, '.0f')} "
+            f"{cell('rss_tree_mib', 6, '.0f')}"
         )
         if "error" in r:
             print(f"  {r['case']} failed: {r['error']}")
+        if "refused" in r:
+            print(f"  {r['case']} refused after {float(r['refused_s']):.1f} s: {r['refused']}")  # type: ignore[arg-type]
     print("peak RSS is ru_maxrss of the map's own process, cumulative over the stages")
 
 

@@ -277,3 +277,78 @@ def test_empty_library_gives_an_empty_graph() -> None:
     assert graph.num_nodes == 0 and graph.num_edges == 0
     assert graph.csr("distance").shape == (0, 0)
     assert graph.csc("distance").shape == (0, 0) and graph.csc("time").nnz == 0
+
+
+@pytest.mark.parametrize("dense", [True, False])
+def test_lattice_edges_generate_the_matrices(monkeypatch: pytest.MonkeyPatch, dense: bool) -> None:
+    """The edges are generated from the lattice, through the dense (point, type) table or
+    by bisection among a type's rows; the matrices built from them agree row by row with
+    the generator, and nothing per edge is built until asked for."""
+    import gracenav.graph as graph_module
+
+    if not dense:
+        monkeypatch.setattr(graph_module, "_DENSE_LOOKUP", 0)
+    lib = build_library(
+        mixed_palette(),
+        free_map(3.0, 3.0, [{"rectangle": {"min": [1.2, 1.2], "max": [1.6, 1.7]}}]),
+        footprint_radius=0.05,
+        max_halvings=1,
+        coverage_samples=100,
+    )
+    graph = build_graph(lib)
+    assert (graph.lattice_edges.table.size > 0) == dense
+    assert not graph._cache  # no matrix yet
+    e = graph.num_edges
+    assert e > 1000 and not any(k.startswith("csr") or k.startswith("csc") for k in graph._cache)
+    csc = graph.csc("time")
+    assert "csr" not in graph._cache  # the reversed graph is built without the forward one
+    a = graph.adjacency
+    assert a.nnz == csc.nnz == e
+    for i in range(len(lib)):
+        np.testing.assert_array_equal(graph.successors(i), a.indices[a.indptr[i] : a.indptr[i + 1]])
+    assert edge_set(graph) == {
+        (int(i), int(j))
+        for j in range(len(lib))
+        for i in csc.indices[csc.indptr[j] : csc.indptr[j + 1]]
+    }
+    with pytest.raises(IndexError):
+        graph.successors(len(lib))
+
+
+def test_lookup_modes_give_the_same_graph(monkeypatch: pytest.MonkeyPatch) -> None:
+    import gracenav.graph as graph_module
+
+    lib = build_library(
+        mixed_palette(),
+        free_map(2.5, 2.0),
+        footprint_radius=0.05,
+        max_halvings=1,
+        coverage_samples=100,
+    )
+    dense = build_graph(lib).adjacency
+    monkeypatch.setattr(graph_module, "_DENSE_LOOKUP", 0)
+    sparse_lookup = build_graph(lib).adjacency
+    np.testing.assert_array_equal(dense.indptr, sparse_lookup.indptr)
+    np.testing.assert_array_equal(dense.indices, sparse_lookup.indices)
+
+
+def test_search_form_stores_the_reversed_graph_below_the_limit(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import gracenav.graph as graph_module
+
+    lib = build_library(
+        mixed_palette(),
+        free_map(2.0, 2.0),
+        footprint_radius=0.05,
+        max_halvings=0,
+        coverage_samples=100,
+    )
+    graph = build_graph(lib)
+    assert graph.search_form("distance") is graph.csc("distance")
+    assert graph.cached_csc("time") is None
+    monkeypatch.setattr(graph_module, "STORED_EDGES", 0)
+    fresh = build_graph(lib)
+    assert fresh.search_form("time") is fresh and fresh.cached_csc("time") is None
+    with pytest.raises(ConfigError, match="cost"):
+        fresh.search_form("energy")  # type: ignore[arg-type]

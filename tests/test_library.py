@@ -9,9 +9,11 @@ from synthetic import DT, palette, policy, primitive
 from gracenav import ConfigError, MapError
 from gracenav.domains import EllipsoidalDomain
 from gracenav.library import (
+    POLICY_BYTES,
     InstantiationIteration,
     PolicyLibrary,
     build_library,
+    estimate_library_size,
     max_trim_speed,
     quarter_turn,
     sample_position_states,
@@ -422,3 +424,58 @@ def test_the_largest_start_domain_that_fits_is_placed() -> None:
     everywhere = set().union(*valid.values())
     assert sum(placed.values()) == len(everywhere)
     assert placed[family[0].name] > 0 and placed[family[-1].name] > 0
+
+
+def test_library_size_is_bounded_and_an_over_budget_pass_refused() -> None:
+    """The estimate brackets the kept policies; a pass over ``memory_limit`` is refused
+    before any instantiation, with the estimate in the message."""
+    pal = palette(policy(rest()), policy(cruise_x()))
+    wmap = free_map(0.0, 0.0, 4.0, 3.0, [{"rectangle": {"min": [1.7, 1.2], "max": [2.3, 1.8]}}])
+    for spacing in (0.5, 0.25):
+        low, high = estimate_library_size(pal, wmap, spacing, footprint_radius=0.1)
+        lib = build_library(
+            pal, wmap, footprint_radius=0.1, max_halvings=int(spacing < 0.5), coverage_samples=50
+        )
+        assert lib.spacing == spacing
+        assert 0 < low <= len(lib) <= high
+    limit = low * POLICY_BYTES - 1  # the d / 2 pass needs `low` policies at least
+    lib = build_library(
+        pal, wmap, footprint_radius=0.1, max_halvings=0, coverage_samples=50, memory_limit=limit
+    )
+    assert len(lib) > 0  # the pass at d fits
+    with pytest.raises(ConfigError, match=r"halving 1.*memory_limit"):
+        build_library(
+            pal,
+            wmap,
+            footprint_radius=0.1,
+            max_halvings=1,
+            coverage_samples=50,
+            memory_limit=limit,
+        )
+    with pytest.raises(ConfigError, match="memory_limit"):
+        build_library(pal, wmap, memory_limit=-1.0)
+    unlimited = build_library(
+        pal, wmap, footprint_radius=0.1, max_halvings=1, coverage_samples=50, memory_limit=None
+    )
+    assert unlimited.spacing == 0.25
+
+
+def test_compiled_clearance_is_the_maps_clearance() -> None:
+    """The sweep check's compiled clearance agrees with WorldMap.clearance, inside, on
+    obstacles, on the edge and outside the map."""
+    from gracenav.library import _clearance_at
+
+    wmap = free_map(0.0, 0.0, 3.0, 2.0, [{"circle": {"center": [1.2, 0.9], "radius": 0.3}}])
+    rng = np.random.default_rng(5)
+    pts = np.concatenate([rng.uniform(-0.2, 3.2, size=(3000, 2)), [[0.0, 0.0], [3.0, 1.0]]])
+    _, nearest = wmap._clearance_data()
+    (x0, y0), (x1, y1) = wmap.bounds
+    got = np.array(
+        [
+            _clearance_at(x, y, nearest, wmap.occupied, 0.0, 0.0, wmap.resolution, x0, y0, x1, y1)
+            for x, y in pts
+        ]
+    )
+    want = wmap.clearance(pts)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+    assert np.any(want == 0.0) and np.any(want > 0.3)

@@ -17,18 +17,17 @@ from scipy.sparse import csgraph
 from synthetic import palette, policy, primitive
 
 from gracenav import ConfigError, PlanningError
-from gracenav.graph import build_graph
-from gracenav.library import build_library
-from gracenav.planning import (
+from gracenav._search import (
     _DONE,
     _REVISITED,
     _TOO_MANY_COSTS,
-    CostCriterion,
-    PolicyTree,
     _search_heap,
+    _search_heap_lattice,
     _search_queues,
-    plan_tree,
 )
+from gracenav.graph import build_graph
+from gracenav.library import build_library
+from gracenav.planning import CostCriterion, PolicyTree, plan_path, plan_tree
 from gracenav.policies import PrimitiveKind
 from gracenav.world import load_map
 
@@ -310,3 +309,106 @@ def test_goal_index_checked() -> None:
     with pytest.raises(PlanningError, match="outside the library"):
         plan_tree(adj.tocsc(), -1)
     assert plan_tree(adj, 0, criterion="distance").criterion is CostCriterion.DISTANCE
+
+
+@pytest.mark.parametrize("dense", [True, False])
+def test_trees_on_edges_generated_from_the_lattice_are_the_stored_graphs_trees(
+    monkeypatch: pytest.MonkeyPatch, dense: bool
+) -> None:
+    """plan_tree on a graph that stores no edges gives exactly the tree of the stored
+    reversed graph (the same relaxation order, so the same ties), by both searches."""
+    import gracenav.graph as graph_module
+
+    if not dense:
+        monkeypatch.setattr(graph_module, "_DENSE_LOOKUP", 0)
+    lib, stored = small_library_graph()
+    implicit = build_graph(lib)
+    trims = lib.trim_indices()
+    rng = np.random.default_rng(3)
+    for cost in ("time", "distance"):
+        csc = stored.csc(cost)
+        type_cost = implicit.type_cost(cost)
+        for goal in rng.choice(trims, 5, replace=False):
+            want = plan_tree(csc, int(goal), criterion=cost)
+            got = plan_tree(implicit, int(goal), criterion=cost)
+            assert implicit.cached_csc(cost) is None  # searched without a stored graph
+            np.testing.assert_array_equal(got.cost_to_go, want.cost_to_go)
+            np.testing.assert_array_equal(got.next_policy, want.next_policy)
+            dist, nxt = np.empty(len(lib)), np.empty(len(lib), np.int64)
+            args = implicit.lattice_edges.kernel_args()
+            assert _search_heap_lattice(type_cost, int(goal), dist, nxt, *args) == _DONE
+            np.testing.assert_array_equal(dist, want.cost_to_go)
+            if cost == "time":
+                np.testing.assert_array_equal(nxt, want.next_policy)
+    # A graph whose reversed graph is built is searched on it.
+    stored.csc("time")
+    assert plan_tree(stored, int(trims[0])).cost_to_go.shape == (len(lib),)
+    with pytest.raises(PlanningError, match="outside the library"):
+        plan_tree(implicit, len(lib))
+
+
+def test_point_to_point_paths_cost_the_trees_cost_to_go() -> None:
+    """A* finds a path of the tree's cost-to-go (the heuristic is admissible): every
+    step an edge, the cost the sum of the executed policies' costs."""
+    lib, graph = small_library_graph()
+    trims = lib.trim_indices()
+    rng = np.random.default_rng(4)
+    reached = unreached = 0
+    for cost in ("time", "distance"):
+        node_cost = graph.node_cost(cost)
+        for goal in rng.choice(trims, 4, replace=False):
+            tree = plan_tree(graph, int(goal), criterion=cost)
+            for start in rng.choice(len(lib), 12, replace=False):
+                path = plan_path(graph, int(start), int(goal), criterion=cost)
+                if not tree.reachable(int(start)):
+                    assert not path.reachable and path.cost == np.inf
+                    unreached += 1
+                    continue
+                reached += 1
+                assert path.policies[0] == start and path.policies[-1] == goal
+                for a, b in itertools.pairwise(path.policies):
+                    assert b in graph.successors(int(a))
+                np.testing.assert_allclose(
+                    path.cost, node_cost[path.policies[:-1]].sum(), rtol=1e-12, atol=1e-12
+                )
+                np.testing.assert_allclose(
+                    path.cost, tree.cost_to_go[start], rtol=1e-12, atol=1e-12
+                )
+                assert 0 < path.expanded <= len(lib)
+    assert reached > 10 and unreached > 0
+    # Several starts: the cheapest; a start that is the goal costs nothing.
+    goal = int(trims[0])
+    tree = plan_tree(graph, goal)
+    starts = np.flatnonzero(np.isfinite(tree.cost_to_go))[:5]
+    best = plan_path(graph, starts, goal)
+    np.testing.assert_allclose(best.cost, tree.cost_to_go[starts].min(), rtol=1e-12, atol=1e-12)
+    assert plan_path(graph, goal, goal).cost == 0.0
+    with pytest.raises(PlanningError, match="outside the library"):
+        plan_path(graph, len(lib), goal)
+
+
+def test_a_replan_joining_an_earlier_path_costs_the_trees_cost_to_go() -> None:
+    """With ``via`` (an optimal path to the goal), A* stops where joining it is
+    cheapest: still the tree's cost-to-go, and the path follows ``via`` from there."""
+    lib, graph = small_library_graph()
+    trims = lib.trim_indices()
+    rng = np.random.default_rng(6)
+    checked = 0
+    for goal in rng.choice(trims, 4, replace=False):
+        tree = plan_tree(graph, int(goal))
+        reach = np.flatnonzero(np.isfinite(tree.cost_to_go))
+        if reach.size < 3:
+            continue
+        for first, second in rng.choice(reach, (6, 2)):
+            via = plan_path(graph, int(first), int(goal))
+            path = plan_path(graph, int(second), int(goal), via=via)
+            np.testing.assert_allclose(path.cost, tree.cost_to_go[second], rtol=1e-12, atol=1e-12)
+            assert path.policies[0] == second and path.policies[-1] == goal
+            for a, b in itertools.pairwise(path.policies):
+                assert b in graph.successors(int(a))
+            checked += 1
+    assert checked > 6
+    with pytest.raises(ConfigError, match="via"):
+        plan_path(
+            graph, int(trims[1]), int(trims[0]), via=plan_path(graph, int(trims[1]), int(trims[1]))
+        )

@@ -457,7 +457,7 @@ class HybridController:
         self.palette = library.palette
         self.gains = self.palette.gains
         self.params = params if params is not None else self.palette.params
-        self._adjacency = graph.csc(self.criterion.value)
+        self._adjacency = graph.search_form(self.criterion.value)
         self._trees: dict[int, PolicyTree] = {}
         # Terminal regulators depend on the library and the goal only: shared by every
         # controller on the same library (a scenario's runs, a campaign's trials).

@@ -22,6 +22,13 @@ displacement over the spacing, rounded, accepted if within ``atol``), and the
 successors are the policies of compatible types starting at that cell, found by a
 table lookup on (type, lattice point). No pair of library policies is ever compared.
 
+The edges are not stored: :func:`build_graph` keeps the type tables, each policy's type
+and point, and the lookup table (:class:`LatticeEdges`, about 8 bytes per policy plus
+4 bytes per (point, type) pair), O(N + T²) to build. The successors or predecessors of
+a policy are generated on demand (:mod:`gracenav._search`), and the sparse matrices are
+built from them on first use. On a 100 m open hall this is the difference between
+175 M edges (about 5 GiB with both costs and the reversed graph) and 140 MiB.
+
 Edge costs: entry (i, j) of the adjacency matrix is the cost of *executing policy i*
 (then switching to j): its duration t_f (s) for the fastest-time criterion, or the
 XY length of its reference path (m) for the shortest-path criterion. The
@@ -41,10 +48,19 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
 
+from gracenav._search import _count_edges, _fill_edges, _successors_of
 from gracenav.errors import ConfigError
 from gracenav.library import InstantiatedPolicy, PolicyLibrary
 
-__all__ = ["CostName", "PreparesGraph", "build_graph", "gains_equal", "gracefully_prepares"]
+__all__ = [
+    "STORED_EDGES",
+    "CostName",
+    "LatticeEdges",
+    "PreparesGraph",
+    "build_graph",
+    "gains_equal",
+    "gracefully_prepares",
+]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -54,8 +70,11 @@ CostName = Literal["time", "distance"]
 _COSTS = ("time", "distance")
 #: Default absolute tolerance of state continuity (m, m/s, m/s², rad, rad/s).
 DEFAULT_ATOL = 1e-6
-_DENSE_LOOKUP = 1 << 25  # largest (type, point) table (int32 entries) built for the join
-_EDGE_CHUNK = 1 << 22  # candidate edges examined at once
+#: Largest (type, point) lookup table (int32 entries) kept with the implicit edges.
+_DENSE_LOOKUP = 1 << 25
+#: Most edges for which :meth:`PreparesGraph.search_form` stores the reversed graph
+#: (12 bytes per edge: 512 MiB).
+STORED_EDGES = (512 << 20) // 12
 
 
 def gains_equal(a: object, b: object) -> bool:
@@ -100,18 +119,93 @@ def gracefully_prepares(
 
 
 @dataclass(frozen=True, eq=False)
+class LatticeEdges:
+    """The edges of Ω(L) in implicit form: what generates them from the lattice.
+
+    A library policy is a (type, lattice point) pair. Policy i of type t gracefully
+    prepares policy j iff j's type is compatible with t (conditions (i), (iii) and
+    (ii) except position, decided once per pair of types) and j starts at i's start
+    point plus t's end offset in lattice cells. So every edge is found from the
+    type tables and a lookup from (type, point) to library row; none is stored.
+
+    Attributes
+    ----------
+    lattice_shape : tuple of int
+        (ny, nx) of the library's lattice.
+    row_type, row_point : ndarray of int32, shape (N,)
+        Type and lattice point id (iy · nx + ix) of each library row.
+    succ_ptr : ndarray of int64, shape (T + 1,)
+    succ_type : ndarray of int32
+        Types compatible as successors of each type, ascending:
+        ``succ_type[succ_ptr[t]:succ_ptr[t + 1]]``.
+    pred_ptr : ndarray of int64, shape (T + 1,)
+    pred_type : ndarray of int32
+        Types compatible as predecessors of each type, grouped by end offset (y, then
+        x), ascending within a group.
+    offset : ndarray of int64, shape (T, 2)
+        End offset of each type in lattice cells (x, y).
+    type_first : ndarray of int64, shape (T + 1,)
+        First library row of each type (rows are in type order).
+    table : ndarray of int32, shape (P · T,) or (0,)
+        Library row of each (point, type) pair (−1 if none) at point · T + t, when it
+        fits in :data:`_DENSE_LOOKUP` entries; otherwise empty and a row is found by
+        bisection among its type's rows. Point-major: the successors of a policy, all
+        at one point, are one contiguous stretch of the table.
+    """
+
+    lattice_shape: tuple[int, int]
+    row_type: NDArray[np.int32]
+    row_point: NDArray[np.int32]
+    succ_ptr: IntArray
+    succ_type: NDArray[np.int32]
+    pred_ptr: IntArray
+    pred_type: NDArray[np.int32]
+    offset: IntArray
+    type_first: IntArray
+    table: NDArray[np.int32]
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held by the arrays."""
+        return sum(
+            int(getattr(self, f.name).nbytes)
+            for f in dataclasses.fields(self)
+            if isinstance(getattr(self, f.name), np.ndarray)
+        )
+
+    def kernel_args(self) -> tuple[Any, ...]:
+        """The arrays and sizes the compiled edge generators take, in their order."""
+        ny, nx = self.lattice_shape
+        return (
+            self.row_type,
+            self.row_point,
+            nx,
+            ny,
+            self.pred_ptr,
+            self.pred_type,
+            self.succ_ptr,
+            self.succ_type,
+            self.offset[:, 0].copy(),
+            self.offset[:, 1].copy(),
+            self.type_first,
+            self.table,
+        )
+
+
+@dataclass(frozen=True, eq=False)
 class PreparesGraph:
     """The gracefully prepares graph Ω(L): directed, nodes = library policies.
+
+    The edges are generated from the lattice (:class:`LatticeEdges`); the sparse
+    matrices below are built on first use and kept, so a graph on a building-scale
+    map costs memory per edge only if a matrix is asked for (see the module notes
+    and :func:`gracenav.planning.plan_tree`, which searches the implicit form).
 
     Attributes
     ----------
     library : PolicyLibrary
-    adjacency : scipy.sparse.csr_matrix, shape (N, N)
-        Entry (i, j) is the fastest-time cost of the edge i → j: the duration of
-        policy i (s). Sorted indices, no duplicates, no self-loops.
-    distance_weights : ndarray, shape (E,)
-        Shortest-path cost of each stored edge, aligned with ``adjacency.data``: the
-        XY path length of the source policy's reference (m).
+    lattice_edges : LatticeEdges
+        The implicit form of the edges.
     atol : float
         Tolerance of the state continuity checks.
 
@@ -122,12 +216,9 @@ class PreparesGraph:
     """
 
     library: PolicyLibrary
-    adjacency: sparse.csr_matrix
-    distance_weights: FloatArray
+    lattice_edges: LatticeEdges
     atol: float = DEFAULT_ATOL
-    _csc: dict[str, sparse.csc_matrix] = field(
-        default_factory=dict, init=False, repr=False, compare=False
-    )
+    _cache: dict[str, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __repr__(self) -> str:
         return f"PreparesGraph({self.num_nodes} nodes, {self.num_edges} edges)"
@@ -135,12 +226,50 @@ class PreparesGraph:
     @property
     def num_nodes(self) -> int:
         """N, the number of library policies."""
-        return int(self.adjacency.shape[0])
+        return len(self.library)
 
     @property
     def num_edges(self) -> int:
-        """E, the number of gracefully prepares edges."""
-        return int(self.adjacency.nnz)
+        """E, the number of gracefully prepares edges (counted on first use, O(N + E))."""
+        out = self._cache.get("num_edges")
+        if out is None:
+            a = self._cache.get("csr")
+            if a is not None:
+                out = int(a.nnz)
+            else:
+                counts = np.empty(self.num_nodes, dtype=np.int64)
+                _count_edges(counts, True, *self.lattice_edges.kernel_args())
+                out = int(counts.sum())
+            self._cache["num_edges"] = out
+        return int(out)
+
+    @property
+    def adjacency(self) -> sparse.csr_matrix:
+        """The adjacency matrix (N, N), built on first use and kept (20 bytes per edge
+        with :attr:`distance_weights`).
+
+        Entry (i, j) is the fastest-time cost of the edge i → j: the duration of
+        policy i (s). Sorted indices, no duplicates, no self-loops.
+        """
+        out = self._cache.get("csr")
+        if out is None:
+            n = self.num_nodes
+            indptr, indices = _materialise(self, forward=True)
+            data = np.repeat(self.library.durations, np.diff(indptr))
+            out = sparse.csr_matrix((data, indices, indptr), shape=(n, n), copy=False)
+            out.has_sorted_indices = True
+            self._cache["csr"] = out
+        return out
+
+    @property
+    def distance_weights(self) -> FloatArray:
+        """Shortest-path cost of each edge, aligned with ``adjacency.data``: the XY path
+        length of the source policy's reference (m), shape (E,)."""
+        out = self._cache.get("distance_weights")
+        if out is None:
+            out = np.repeat(self.library.path_lengths, np.diff(self.adjacency.indptr))
+            self._cache["distance_weights"] = out
+        return out
 
     @property
     def time_weights(self) -> FloatArray:
@@ -153,6 +282,14 @@ class PreparesGraph:
         _check_cost(cost)
         lib = self.library
         out: FloatArray = lib.durations if cost == "time" else lib.path_lengths
+        return out
+
+    def type_cost(self, cost: CostName = "time") -> FloatArray:
+        """Cost of executing a policy of each type: duration (s) or XY path length (m),
+        shape (T,); ``node_cost(cost)[i] == type_cost(cost)[type of i]``."""
+        _check_cost(cost)
+        types = self.library.types
+        out: FloatArray = types.duration if cost == "time" else types.path_length
         return out
 
     def csr(self, cost: CostName = "time") -> sparse.csr_matrix:
@@ -172,33 +309,54 @@ class PreparesGraph:
         """The adjacency matrix (N, N) weighted by ``cost``, stored by columns.
 
         Column j lists the policies that gracefully prepare j, so ``csc(cost).T`` is the
-        reversed graph in CSR form without a copy: what :func:`gracenav.planning.plan_tree`
-        searches. Built on the first call (O(N + E)) and kept: the row indices and column
-        pointers (int32 below 2³¹ edges) are shared by both costs, the weights (float64)
-        are per cost, so the first cost asked for adds 12 bytes per edge (+ 4 per node)
-        to the graph's 20 bytes per edge, the second 8 more. Sorted indices, the same
-        entries as :meth:`csr` (explicit zeros included).
+        reversed graph in CSR form without a copy. Built on the first call (O(N + E),
+        from the lattice, without the forward matrix) and kept: the row indices and
+        column pointers (int32 below 2³¹ edges) are shared by both costs, the weights
+        (float64) are per cost, so the first cost asked for costs 12 bytes per edge
+        (+ 4 per node), the second 8 more. Sorted indices, the same entries as
+        :meth:`csr` (explicit zeros included).
         """
         _check_cost(cost)
-        out = self._csc.get(cost)
+        out = self._cache.get(f"csc-{cost}")
         if out is None:
-            if self._csc:
-                base = next(iter(self._csc.values()))
-            else:
-                base = self.adjacency.tocsc()
-            # Entry (i, j) is the cost of executing policy i, the row index.
-            data = np.ascontiguousarray(self.node_cost(cost)[base.indices], dtype=np.float64)
-            out = sparse.csc_matrix(
-                (data, base.indices, base.indptr), shape=self.adjacency.shape, copy=False
-            )
+            base = self._cache.get("csc-structure")
+            if base is None:
+                base = self._cache["csc-structure"] = _materialise(self, forward=False)
+            indptr, indices = base
+            data = np.ascontiguousarray(self.node_cost(cost)[indices], dtype=np.float64)
+            n = self.num_nodes
+            out = sparse.csc_matrix((data, indices, indptr), shape=(n, n), copy=False)
             out.has_sorted_indices = True
-            self._csc[cost] = out
+            self._cache[f"csc-{cost}"] = out
         return out
+
+    def cached_csc(self, cost: CostName = "time") -> sparse.csc_matrix | None:
+        """:meth:`csc` if it has been built, else None (nothing is built)."""
+        _check_cost(cost)
+        return self._cache.get(f"csc-{cost}")
+
+    def search_form(self, cost: CostName = "time") -> sparse.csc_matrix | PreparesGraph:
+        """What to give :func:`gracenav.planning.plan_tree` for repeated trees.
+
+        The reversed graph in CSC form (:meth:`csc`, built now) when the graph has at
+        most :data:`STORED_EDGES` edges, the fastest to search; otherwise the graph
+        itself, whose edges the search generates from the lattice (no memory per
+        edge). Both give the same trees.
+        """
+        _check_cost(cost)
+        if self.num_edges <= STORED_EDGES:
+            return self.csc(cost)
+        return self
 
     def successors(self, i: int) -> IntArray:
         """Library rows that policy ``i`` gracefully prepares, ascending."""
-        a = self.adjacency
-        out: IntArray = a.indices[a.indptr[i] : a.indptr[i + 1]].astype(np.int64)
+        n = self.num_nodes
+        if not 0 <= i < n:
+            raise IndexError(f"library policy {i} out of range for a library of {n} policies")
+        args = self.lattice_edges.kernel_args()
+        buf = np.empty(max(int(np.diff(self.lattice_edges.succ_ptr).max(initial=0)), 1), np.int64)
+        m = _successors_of(int(i), buf, *args)
+        out: IntArray = buf[:m].copy()
         return out
 
     def edges(self) -> tuple[IntArray, IntArray]:
@@ -293,70 +451,52 @@ def build_graph(library: PolicyLibrary, *, atol: float = DEFAULT_ATOL) -> Prepar
             f"atol must be positive and below a quarter of the lattice spacing "
             f"({0.25 * library.spacing:g} m), got {atol!r}"
         )
-    n = len(library)
     ny, nx = library.lattice_shape
     n_points = nx * ny
     compat, cells = _type_compatibility(library, atol)
     n_types = compat.shape[0]
     succ_ptr = np.concatenate([[0], np.cumsum(compat.sum(axis=1))]).astype(np.int64)
-    succ_type = np.nonzero(compat)[1].astype(np.int64)
+    succ_type = np.nonzero(compat)[1].astype(np.int32)
+    pred_ptr = np.concatenate([[0], np.cumsum(compat.sum(axis=0))]).astype(np.int64)
+    # Predecessor types grouped by end offset (one table row per group), types ascending.
+    succ_of, pred_of = np.nonzero(compat.T)
+    order = np.lexsort((pred_of, cells[pred_of, 0], cells[pred_of, 1], succ_of))
+    pred_type = pred_of[order].astype(np.int32)
+    row_type = np.ascontiguousarray(library.type_index, dtype=np.int32)
+    cell = library.start_cell
+    row_point = np.ascontiguousarray(cell[:, 1] * nx + cell[:, 0], dtype=np.int32)
+    type_first = np.searchsorted(row_type, np.arange(n_types + 1)).astype(np.int64)
+    if n_types * n_points <= _DENSE_LOOKUP:
+        table = np.full(n_types * n_points, -1, dtype=np.int32)
+        table[row_point.astype(np.int64) * n_types + row_type] = np.arange(
+            len(library), dtype=np.int32
+        )
+    else:
+        table = np.zeros(0, dtype=np.int32)
+    edges = LatticeEdges(
+        lattice_shape=(ny, nx),
+        row_type=row_type,
+        row_point=row_point,
+        succ_ptr=succ_ptr,
+        succ_type=succ_type,
+        pred_ptr=pred_ptr,
+        pred_type=pred_type,
+        offset=np.ascontiguousarray(cells, dtype=np.int64),
+        type_first=type_first,
+        table=table,
+    )
+    return PreparesGraph(library=library, lattice_edges=edges, atol=float(atol))
 
-    row_type = library.type_index
-    key = row_type * n_points + library.point_index  # strictly increasing in row order
-    dense = n_types * n_points <= _DENSE_LOOKUP
-    if dense:
-        table = np.full(n_types * n_points, -1, dtype=np.int32 if n < 2**31 else np.int64)
-        table[key] = np.arange(n)
-    end_cell = library.start_cell + cells[row_type]
-    inside = (
-        (end_cell[:, 0] >= 0)
-        & (end_cell[:, 0] < nx)
-        & (end_cell[:, 1] >= 0)
-        & (end_cell[:, 1] < ny)
-    )
-    end_point = end_cell[:, 1] * nx + end_cell[:, 0]
-    n_succ = np.where(inside, succ_ptr[row_type + 1] - succ_ptr[row_type], 0)
 
-    src_parts: list[IntArray] = []
-    dst_parts: list[IntArray] = []
-    cum = np.cumsum(n_succ)
-    lo = 0
-    while lo < n:
-        base = cum[lo - 1] if lo else 0
-        hi = int(np.searchsorted(cum, base + _EDGE_CHUNK, side="right"))
-        hi = max(hi, lo + 1)
-        rows = np.arange(lo, hi)
-        counts = n_succ[lo:hi]
-        rep = np.repeat(rows, counts)
-        ramp = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
-        t2 = succ_type[succ_ptr[row_type[rep]] + ramp]
-        cand = t2 * n_points + end_point[rep]
-        if dense:
-            j = table[cand].astype(np.int64)
-        else:
-            pos = np.searchsorted(key, cand)
-            pos_c = np.minimum(pos, max(n - 1, 0))
-            j = np.where((pos < n) & (key[pos_c] == cand), pos_c, -1)
-        keep = (j >= 0) & (j != rep)
-        src_parts.append(rep[keep])
-        dst_parts.append(j[keep])
-        lo = hi
-    src = np.concatenate(src_parts) if src_parts else np.zeros(0, np.int64)
-    dst = np.concatenate(dst_parts) if dst_parts else np.zeros(0, np.int64)
-    indptr = np.concatenate([[0], np.cumsum(np.bincount(src, minlength=n))])
-    index_dtype = np.int32 if max(n, src.size) < 2**31 - 1 else np.int64
-    adjacency = sparse.csr_matrix(
-        (
-            np.ascontiguousarray(library.durations[src], dtype=np.float64),
-            dst.astype(index_dtype),
-            indptr.astype(index_dtype),
-        ),
-        shape=(n, n),
-    )
-    adjacency.has_sorted_indices = True
-    return PreparesGraph(
-        library=library,
-        adjacency=adjacency,
-        distance_weights=np.ascontiguousarray(library.path_lengths[src], dtype=np.float64),
-        atol=float(atol),
-    )
+def _materialise(graph: PreparesGraph, *, forward: bool) -> tuple[NDArray[Any], NDArray[Any]]:
+    """(indptr, indices) of the adjacency by rows (``forward``) or by columns, sorted."""
+    n = graph.num_nodes
+    args = graph.lattice_edges.kernel_args()
+    counts = np.empty(n, dtype=np.int64)
+    _count_edges(counts, forward, *args)
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(counts, out=indptr[1:])
+    index_dtype = np.int32 if max(n, int(indptr[-1])) < 2**31 - 1 else np.int64
+    indices = np.empty(int(indptr[-1]), dtype=index_dtype)
+    _fill_edges(indptr, indices, forward, *args)
+    return indptr.astype(index_dtype), indices

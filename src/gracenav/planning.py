@@ -15,7 +15,7 @@ lengths (18 and 39 for the 139-policy palette) however large the map. With one F
 queue per distinct edge cost, each queue receives its keys in increasing order (a key is
 the settled cost-to-go, which only grows, plus the queue's constant cost), so a push is
 an append and a pop takes the smallest of the queue heads, kept in a binary heap of at
-most :data:`_MAX_QUEUES` queues: O(E + N log K) for K distinct costs instead of
+most :data:`gracenav._search._MAX_QUEUES` queues: O(E + N log K) for K distinct costs instead of
 O(E + N log N). Measured side by side with :func:`scipy.sparse.csgraph.dijkstra` on the
 same arrays (``bench/bench_planning.py``, medians): 1.8 times faster on the paper's 3.5 m
 area, 3 times on the 50 m office for random goals and 1.3 times for goals in its
@@ -24,6 +24,13 @@ accesses into a 320,000-policy array, dominates). Graphs with more distinct cost
 or whose costs are not those of their source policies (a policy reached again at a lower
 cost), are searched with an indexed binary heap instead: the same costs, and with
 positive costs the same next policies. Each search allocates about 17 bytes per policy.
+
+On a graph that stores no edges (:class:`gracenav.graph.PreparesGraph` given instead
+of a matrix) the same search generates the edges into each settled policy from the
+lattice, in the same order (ascending rows), so the tree is the same; it costs no
+memory per edge but about ten times the time (each predecessor is a probe of the
+lookup table). For a point-to-point task on a building-scale map, :func:`plan_path`
+searches forward from the start with A* instead of building the whole tree.
 
 Equally good next policies are common on a lattice (two paths around a square), and
 the tree does not depend on the order in which the search meets them (scipy's Dijkstra
@@ -44,21 +51,26 @@ from typing import Any
 
 import numpy as np
 import scipy.sparse
-from numba import njit
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import ConvexHull, QhullError
 
+from gracenav._search import (
+    _NEGATIVE,
+    _REVISITED,
+    _TOO_MANY_COSTS,
+    _astar,
+    _search_heap,
+    _search_heap_lattice,
+    _search_queues,
+    _search_queues_lattice,
+)
 from gracenav.errors import ConfigError, PlanningError
+from gracenav.graph import PreparesGraph
 
-__all__ = ["CostCriterion", "PolicyTree", "plan_tree"]
+__all__ = ["CostCriterion", "PolicyPath", "PolicyTree", "plan_path", "plan_tree"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
-
-#: Most distinct edge costs searched with one FIFO queue each (see the module notes).
-_MAX_QUEUES = 256
-_TABLE = 1024  # open-addressing table from an edge cost to its queue (a power of 2)
-# Status of the compiled searches.
-_DONE, _NEGATIVE, _TOO_MANY_COSTS, _REVISITED = 0, 1, 2, 3
 
 
 class CostCriterion(enum.Enum):
@@ -115,7 +127,7 @@ class PolicyTree:
 
 
 def plan_tree(
-    adjacency: scipy.sparse.sparray | scipy.sparse.spmatrix,
+    adjacency: scipy.sparse.sparray | scipy.sparse.spmatrix | PreparesGraph,
     goal: int,
     *,
     criterion: CostCriterion | str = CostCriterion.TIME,
@@ -124,16 +136,19 @@ def plan_tree(
 
     Parameters
     ----------
-    adjacency : scipy.sparse matrix or array, shape (N, N)
+    adjacency : scipy.sparse matrix or array, shape (N, N), or PreparesGraph
         Entry (i, j) is the cost of executing policy i when i gracefully
         prepares j; stored entries are edges, explicit zeros included. In CSC form
         (:meth:`gracenav.graph.PreparesGraph.csc`) its arrays are the reversed graph
         at no cost; any other form (:meth:`gracenav.graph.PreparesGraph.csr`) is
-        converted to CSC on every call, O(N + E).
+        converted to CSC on every call, O(N + E). A :class:`PreparesGraph` is searched
+        on its stored reversed graph for ``criterion`` if it has built one, otherwise
+        on edges generated from the lattice (no memory per edge); the tree is the same.
     goal : int
         Library index of the goal policy.
     criterion : CostCriterion or str
-        Recorded in the result; the costs themselves come from ``adjacency``.
+        Recorded in the result; the costs themselves come from ``adjacency`` (from the
+        graph's policy costs for ``criterion`` when a PreparesGraph is given).
 
     Returns
     -------
@@ -149,23 +164,41 @@ def plan_tree(
         If ``goal`` is not a library index.
     """
     crit = CostCriterion(criterion) if isinstance(criterion, str) else criterion
-    n = adjacency.shape[0]
-    if adjacency.shape != (n, n):
-        raise ConfigError(f"adjacency must be square, got {adjacency.shape}")
+    graph: PreparesGraph | None = None
+    matrix: Any = adjacency
+    if isinstance(adjacency, PreparesGraph):
+        stored = adjacency.cached_csc(crit.value)
+        if stored is None:
+            graph = adjacency
+        else:
+            matrix = stored
+    if graph is not None:
+        n = graph.num_nodes
+    else:
+        n = matrix.shape[0]
+        if matrix.shape != (n, n):
+            raise ConfigError(f"adjacency must be square, got {matrix.shape}")
     if not 0 <= goal < n:
         raise PlanningError(f"goal policy index {goal} is outside the library (0..{n - 1})")
     if n >= 2**31 - 1:  # the searches index their queues with int32
         raise ConfigError(f"a tree is searched over fewer than 2**31 - 1 policies, got {n}")
-    # Column j of the CSC form lists the policies that prepare j: row j of the reversed
-    # graph in CSR form.
-    reverse = adjacency if adjacency.format == "csc" else adjacency.tocsc()
-    indptr, indices = reverse.indptr, reverse.indices
-    weights = np.ascontiguousarray(reverse.data, dtype=np.float64)
     dist: FloatArray = np.empty(n, dtype=np.float64)
     nxt: IntArray = np.empty(n, dtype=np.int64)
-    status = _search_queues(indptr, indices, weights, int(goal), dist, nxt)
-    if status in (_TOO_MANY_COSTS, _REVISITED):
-        status = _search_heap(indptr, indices, weights, int(goal), dist, nxt)
+    if graph is not None:
+        lattice = graph.lattice_edges.kernel_args()
+        type_cost = np.ascontiguousarray(graph.type_cost(crit.value), dtype=np.float64)
+        status = _search_queues_lattice(type_cost, int(goal), dist, nxt, *lattice)
+        if status in (_TOO_MANY_COSTS, _REVISITED):
+            status = _search_heap_lattice(type_cost, int(goal), dist, nxt, *lattice)
+    else:
+        # Column j of the CSC form lists the policies that prepare j: row j of the
+        # reversed graph in CSR form.
+        reverse = matrix if matrix.format == "csc" else matrix.tocsc()
+        indptr, indices = reverse.indptr, reverse.indices
+        weights = np.ascontiguousarray(reverse.data, dtype=np.float64)
+        status = _search_queues(indptr, indices, weights, int(goal), dist, nxt)
+        if status in (_TOO_MANY_COSTS, _REVISITED):
+            status = _search_heap(indptr, indices, weights, int(goal), dist, nxt)
     if status == _NEGATIVE:
         raise ConfigError(
             "adjacency has a negative or NaN edge cost; costs are policy durations (s) "
@@ -174,221 +207,163 @@ def plan_tree(
     return PolicyTree(goal=int(goal), next_policy=nxt, cost_to_go=dist, criterion=crit)
 
 
-# The compiled searches below fill ``dist`` (cost-to-go, inf if unreachable) and ``nxt``
-# (next policy, -1 at the goal and where unreachable) from the reversed graph in CSR
-# form (``indptr``, ``indices``, ``weights``: row j lists the policies i that prepare j
-# and the cost of executing i), and return a status. A policy is *settled* when its
-# cost-to-go is final; settled keys never decrease. Each relaxation of i from j that
-# ties with the current best replaces ``nxt[i]`` if j has the same cost-to-go as the
-# current choice and a smaller index (see the module notes): with positive costs every
-# successor that attains ``dist[i]`` settles before ``i``, so all are compared.
+@dataclass(frozen=True)
+class PolicyPath:
+    """An optimal sequence of library policies from a start to a goal policy (A*).
 
-
-@njit(cache=True, nogil=True)
-def _search_queues(indptr: Any, indices: Any, weights: Any, goal: int, dist: Any, nxt: Any) -> int:
-    """Dijkstra with one FIFO queue per distinct edge cost (see the module notes).
-
-    Queue entries live in one pool of N + 1 slots, linked per queue; a policy is queued
-    again only if reached at a lower cost, which graphs whose edges cost their source
-    policy never do. Returns ``_TOO_MANY_COSTS`` or ``_REVISITED`` when the pool or
-    the queues run out, and the caller searches again with :func:`_search_heap`.
+    Attributes
+    ----------
+    policies : ndarray of int, shape (K,)
+        Library rows from the start to the goal policy, both included; empty if the
+        goal cannot be reached.
+    cost : float
+        Cost (s or m) of executing the policies before the goal policy: the tree's
+        ``cost_to_go`` of the start, up to rounding; inf if unreachable.
+    expanded : int
+        Policies the search expanded (a measure of its work).
+    criterion : CostCriterion
     """
-    n = dist.size
-    for k in range(n):
-        dist[k] = np.inf
-        nxt[k] = -1
-    settled = np.zeros(n, np.bool_)
-    cap = n + 1
-    e_node = np.empty(cap, np.int32)  # pool: policy, key and next entry of its queue
-    e_key = np.empty(cap, np.float64)
-    e_next = np.empty(cap, np.int32)
-    q_head = np.full(_MAX_QUEUES, -1, np.int32)
-    q_tail = np.full(_MAX_QUEUES, -1, np.int32)
-    q_cost = np.empty(_MAX_QUEUES, np.float64)
-    table = np.full(_TABLE, -1, np.int32)
-    h_queue = np.empty(_MAX_QUEUES, np.int32)  # binary heap of the non-empty queues,
-    h_key = np.empty(_MAX_QUEUES, np.float64)  # keyed by their head entry
-    # The goal, alone in the queue of cost 0 (hash slot 0).
-    q_cost[0] = 0.0
-    n_queues = 1
-    table[0] = 0
-    dist[goal] = 0.0
-    e_node[0] = goal
-    e_key[0] = 0.0
-    e_next[0] = -1
-    count = 1
-    q_head[0] = 0
-    q_tail[0] = 0
-    h_queue[0] = 0
-    h_key[0] = 0.0
-    h_size = 1
-    last_cost = -1.0  # the queue of the last cost looked up
-    last_queue = 0
-    while h_size > 0:
-        c = h_queue[0]
-        e = q_head[c]
-        j = e_node[e]
-        dj = e_key[e]
-        nh = e_next[e]
-        q_head[c] = nh
-        # Queue c moves down the heap with its new head, or leaves it.
-        v = c
-        kv = np.inf
-        if nh == -1:
-            q_tail[c] = -1
-            h_size -= 1
-            if h_size > 0:
-                v = h_queue[h_size]
-                kv = h_key[h_size]
-        else:
-            kv = e_key[nh]
-        if h_size > 0:
-            p = 0
-            while True:
-                ch = 2 * p + 1
-                if ch >= h_size:
-                    break
-                if ch + 1 < h_size and h_key[ch + 1] < h_key[ch]:
-                    ch += 1
-                if h_key[ch] < kv:
-                    h_queue[p] = h_queue[ch]
-                    h_key[p] = h_key[ch]
-                    p = ch
-                else:
-                    break
-            h_queue[p] = v
-            h_key[p] = kv
-        if settled[j] or dj > dist[j]:
-            continue  # an entry left behind by a lower cost
-        settled[j] = True
-        for k in range(indptr[j], indptr[j + 1]):
-            i = indices[k]
-            w = weights[k]
-            if not w >= 0.0:
-                return _NEGATIVE
-            d = dj + w
-            di = dist[i]
-            if d < di:
-                dist[i] = d
-                nxt[i] = j
-                if w == last_cost:
-                    t = last_queue
-                else:
-                    h = (int(w * 1048576.0) * 40503) & (_TABLE - 1) if w < 1e9 else 1
-                    while True:
-                        t = table[h]
-                        if t == -1:
-                            if n_queues == _MAX_QUEUES:
-                                return _TOO_MANY_COSTS
-                            t = n_queues
-                            n_queues += 1
-                            q_cost[t] = w
-                            table[h] = t
-                            break
-                        if q_cost[t] == w:
-                            break
-                        h = (h + 1) & (_TABLE - 1)
-                    last_cost = w
-                    last_queue = t
-                if count == cap:
-                    return _REVISITED
-                e = count
-                count += 1
-                e_node[e] = i
-                e_key[e] = d
-                e_next[e] = -1
-                if q_tail[t] == -1:
-                    q_head[t] = e
-                    p = h_size  # queue t enters the heap
-                    h_size += 1
-                    while p > 0:
-                        pp = (p - 1) >> 1
-                        if h_key[pp] > d:
-                            h_queue[p] = h_queue[pp]
-                            h_key[p] = h_key[pp]
-                            p = pp
-                        else:
-                            break
-                    h_queue[p] = t
-                    h_key[p] = d
-                else:
-                    e_next[q_tail[t]] = e
-                q_tail[t] = e
-            elif d == di and (w > 0.0 or not settled[i]):
-                m = nxt[i]
-                if j < m and dj == dist[m]:
-                    nxt[i] = j
-    return _DONE
+
+    policies: IntArray
+    cost: float
+    expanded: int
+    criterion: CostCriterion
+
+    @property
+    def reachable(self) -> bool:
+        """Whether the goal was reached."""
+        return bool(self.policies.size)
 
 
-@njit(cache=True, nogil=True)
-def _search_heap(indptr: Any, indices: Any, weights: Any, goal: int, dist: Any, nxt: Any) -> int:
-    """Dijkstra with an indexed binary heap (decrease-key), for any non-negative costs."""
-    n = dist.size
-    for k in range(n):
-        dist[k] = np.inf
-        nxt[k] = -1
-    heap = np.empty(n, np.int32)
-    key = np.empty(n, np.float64)
-    pos = np.full(n, -1, np.int32)  # heap slot; -1 never queued, -2 settled
-    dist[goal] = 0.0
-    heap[0] = goal
-    key[0] = 0.0
-    pos[goal] = 0
-    size = 1
-    while size > 0:
-        j = heap[0]
-        dj = key[0]
-        pos[j] = -2
-        size -= 1
-        if size > 0:
-            v = heap[size]
-            kv = key[size]
-            p = 0
-            while True:
-                c = 2 * p + 1
-                if c >= size:
-                    break
-                if c + 1 < size and key[c + 1] < key[c]:
-                    c += 1
-                if key[c] < kv:
-                    heap[p] = heap[c]
-                    key[p] = key[c]
-                    pos[heap[p]] = p
-                    p = c
-                else:
-                    break
-            heap[p] = v
-            key[p] = kv
-            pos[v] = p
-        for k in range(indptr[j], indptr[j + 1]):
-            i = indices[k]
-            w = weights[k]
-            if not w >= 0.0:
-                return _NEGATIVE
-            d = dj + w
-            di = dist[i]
-            if d < di:
-                dist[i] = d
-                nxt[i] = j
-                p = pos[i]
-                if p == -1:
-                    p = size
-                    size += 1
-                while p > 0:
-                    q = (p - 1) >> 1
-                    if key[q] > d:
-                        heap[p] = heap[q]
-                        key[p] = key[q]
-                        pos[heap[p]] = p
-                        p = q
-                    else:
-                        break
-                heap[p] = i
-                key[p] = d
-                pos[i] = p
-            elif d == di and (w > 0.0 or pos[i] != -2):
-                m = nxt[i]
-                if j < m and dj == dist[m]:
-                    nxt[i] = j
-    return _DONE
+def plan_path(
+    graph: PreparesGraph,
+    start: int | ArrayLike,
+    goal: int,
+    *,
+    criterion: CostCriterion | str = CostCriterion.TIME,
+    via: PolicyPath | None = None,
+) -> PolicyPath:
+    """A* from the start policy (or the cheapest of several) to ``goal`` on the graph's
+    edges generated from the lattice: a point-to-point plan without a whole tree.
+
+    The heuristic of a policy is the gauge g(D) = min {λ >= 0 : D ∈ λ P} of the lattice
+    displacement D from its start to the goal policy's start, P the convex hull of the
+    origin and of o / c for every policy type with successors (o its end offset in
+    cells, c its cost). A path of policies with costs c_k covers Σ o_k, and g is
+    sublinear with g(o_k) <= c_k, so g(D) is a lower bound of the cost-to-go that grows
+    by at most the cost of each edge (consistent): the path is optimal and its cost
+    equals the tree's cost-to-go up to rounding. g is at least the straight-line
+    distance over the fastest type's cells per unit cost, and larger in directions
+    no single type moves in. Equally good paths are broken by deeper search first,
+    then smaller library rows.
+
+    Parameters
+    ----------
+    graph : PreparesGraph
+    start : int or array_like of int
+        Library row(s) of the start policy (e.g. those whose S contains the robot).
+    goal : int
+        Library row of the goal policy.
+    criterion : CostCriterion or str
+        Cost of a policy: its duration ("time", s) or path length ("distance", m).
+    via : PolicyPath, optional
+        An earlier optimal path to ``goal`` (same criterion), e.g. the one a push took
+        the robot off: every suffix of it is optimal, so the search stops where joining
+        it is cheapest and no open policy can do better (a local replan), and the
+        result follows it from there.
+
+    Returns
+    -------
+    PolicyPath
+
+    Raises
+    ------
+    PlanningError
+        If a start or the goal is not a library index.
+    ConfigError
+        If a policy cost the search meets is negative or NaN.
+    """
+    crit = CostCriterion(criterion) if isinstance(criterion, str) else criterion
+    n = graph.num_nodes
+    starts = np.atleast_1d(np.asarray(start, dtype=np.int64))
+    for k in (*starts.tolist(), goal):
+        if not 0 <= k < n:
+            raise PlanningError(f"policy index {k} is outside the library (0..{n - 1})")
+    edges = graph.lattice_edges
+    type_cost = np.ascontiguousarray(graph.type_cost(crit.value), dtype=np.float64)
+    h_x, h_y = _gauge_facets(edges.offset, type_cost, np.diff(edges.succ_ptr) > 0)
+    if via is not None:
+        if via.criterion is not crit or not via.reachable or int(via.policies[-1]) != goal:
+            raise ConfigError("via must be a reachable path to the same goal policy and criterion")
+        steps = type_cost[edges.row_type[via.policies[:-1]]]
+        to_go = via.cost - np.concatenate([[0.0], np.cumsum(steps)])
+        to_go[-1] = 0.0
+        order = np.argsort(via.policies)
+        join_rows = np.ascontiguousarray(via.policies[order], dtype=np.int64)
+        join_cost = np.ascontiguousarray(np.maximum(to_go[order], 0.0), dtype=np.float64)
+    else:
+        join_rows = np.array([goal], dtype=np.int64)
+        join_cost = np.zeros(1, dtype=np.float64)
+    g_cost: FloatArray = np.empty(n, dtype=np.float64)
+    parent: IntArray = np.empty(n, dtype=np.int64)
+    status, expanded, joined = _astar(
+        starts,
+        int(goal),
+        join_rows,
+        join_cost,
+        type_cost,
+        h_x,
+        h_y,
+        g_cost,
+        parent,
+        *edges.kernel_args(),
+    )
+    if status == _NEGATIVE:
+        raise ConfigError(
+            "a policy has a negative or NaN cost; costs are policy durations (s) or path "
+            "lengths (m), both >= 0"
+        )
+    if joined < 0:
+        return PolicyPath(np.zeros(0, np.int64), float("inf"), int(expanded), crit)
+    path = [int(joined)]
+    while parent[path[-1]] >= 0:
+        path.append(int(parent[path[-1]]))
+    prefix = np.array(path[::-1], dtype=np.int64)
+    k = int(np.searchsorted(join_rows, joined))
+    cost = float(g_cost[joined] + join_cost[k])
+    if via is not None and joined != goal:
+        at = int(np.flatnonzero(via.policies == joined)[0])
+        prefix = np.concatenate([prefix, via.policies[at + 1 :]])
+    return PolicyPath(prefix, cost, int(expanded), crit)
+
+
+def _gauge_facets(
+    offset: IntArray, type_cost: FloatArray, has_successors: NDArray[np.bool_]
+) -> tuple[FloatArray, FloatArray]:
+    """Coefficients (h_x, h_y) of the gauge of P (see :func:`plan_path`): one pair per
+    edge of P not through the origin, g(D) = max(0, max_f h_x[f] D_x + h_y[f] D_y); none
+    (g = 0) when no type with successors both moves and costs something."""
+    cells = offset.astype(np.float64)
+    use = has_successors & np.any(offset != 0, axis=1) & (type_cost > 0)
+    empty = np.zeros(0, dtype=np.float64)
+    if np.any(has_successors & np.any(offset != 0, axis=1) & (type_cost <= 0)):
+        return empty, empty  # a free move: no positive lower bound
+    pts = np.unique(cells[use] / type_cost[use, None], axis=0)
+    if pts.shape[0] < 2:
+        return empty, empty
+    pts = np.concatenate([pts, np.zeros((1, 2))])
+    try:
+        hull = ConvexHull(pts)
+    except QhullError:  # collinear: bound by the farthest point along every direction
+        far = float(np.hypot(*pts.T).max())
+        ang = np.linspace(0.0, 2.0 * np.pi, 64, endpoint=False)
+        return np.cos(ang) * np.cos(np.pi / 64) / far, np.sin(ang) * np.cos(np.pi / 64) / far
+    eq = hull.equations  # a x + b y + c <= 0 inside, (a, b) a unit normal
+    keep = eq[:, 2] < -1e-12  # edges through the origin bound nothing
+    b = -eq[keep, 2]
+    # A margin far above rounding keeps the bound below every true cost-to-go.
+    margin = 1.0 - 1e-9
+    return (
+        np.ascontiguousarray(margin * eq[keep, 0] / b),
+        np.ascontiguousarray(margin * eq[keep, 1] / b),
+    )
