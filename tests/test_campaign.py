@@ -126,7 +126,12 @@ def test_two_processes_equal_one_and_outputs(tmp_path: Path) -> None:
     k = sum(r["reached_goal"] for r in one)
     assert g["successes"] == k
     assert g["ci95"] == pytest.approx(list(wilson_interval(k, 2)), abs=1e-12)
-    assert (tmp_path / "two" / "table.md").read_text().startswith("| planner |")
+    table_md = (tmp_path / "two" / "table.md").read_text()
+    assert table_md.startswith("| planner |")
+    assert "| push impulse (N s) | gracenav |" in table_md
+    bins = g["impulse_bins"]
+    cell = f"{bins[0]['successes']}/{bins[0]['n']} ["
+    assert cell in table_md.split("| push impulse")[1] or bins[0]["n"] == 0
     for name in ("success_vs_impulse.png", "time_to_goal.png", "lean.png"):
         assert (tmp_path / "two" / name).read_bytes()[:4] == b"\x89PNG"
 

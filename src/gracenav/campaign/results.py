@@ -132,10 +132,32 @@ def write_results(rows: list[dict[str, Any]], directory: Path) -> list[Path]:
             f"{_fmt(e['max_lean_deg'])} | {_fmt(e['median_max_jerk_mps3'], 0)} | "
             f"{e['outcomes'].get('contact', 0)} | {e['outcomes'].get('no_plan', 0)} |"
         )
+    lines += _bin_table(summary)
     (directory / "table.md").write_text("\n".join(lines) + "\n")
     written.append(directory / "table.md")
     written += plot_results(rows, summary, directory)
     return written
+
+
+def _bin_table(summary: dict[str, Any]) -> list[str]:
+    """Success per impulse bin, one column per planner (empty without pushes)."""
+    planners = [p for p, e in summary["planners"].items() if "impulse_bins" in e]
+    if not planners:
+        return []
+    head = "| push impulse (N s) | " + " | ".join(planners) + " |"
+    lines = ["", head, "|---|" + "---|" * len(planners)]
+    bins = summary["planners"][planners[0]]["impulse_bins"]
+    for k, b in enumerate(bins):
+        cells = []
+        for p in planners:
+            e = summary["planners"][p]["impulse_bins"][k]
+            if e["n"]:
+                lo, hi = e["ci95"]
+                cells.append(f"{e['successes']}/{e['n']} [{lo:.0%}, {hi:.0%}]")
+            else:
+                cells.append("–")
+        lines.append(f"| {b['low_ns']:.1f}–{b['high_ns']:.1f} | " + " | ".join(cells) + " |")
+    return lines
 
 
 def plot_results(
