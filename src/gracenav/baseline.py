@@ -110,16 +110,17 @@ class DecoupledOptions:
         Clearance (m) beyond the footprint radius that the grid path and the shortcuts
         keep (the inflation of the occupancy grid).
     smooth_margin : float
-        Clearance (m) beyond the footprint that the smoothed curve and the planned
-        ball path must keep (the B-spline cuts the shortcut's corners, and the ball
-        rolls outward of the flat output in turns); less than ``safety_margin``.
+        Clearance (m) beyond the footprint that the smoothed curve must keep (the
+        B-spline cuts the shortcut's corners); at most ``safety_margin``. The ball
+        itself runs a few cm outward of the curve in turns (it rolls L φ away from the
+        flat output), which this margin also absorbs.
     smoothing_spacing : float
         Initial spacing (m) of the B-spline's control points along the shortcut
         polyline; larger rounds corners more widely.
     speed_scale : float
         Fraction of the palette's fastest trim speed used as the speed limit.
     accel_scale : float
-        Fraction of the palette's acceleration limit used.
+        Fraction of the palette's acceleration and jerk limits used.
     lateral_fraction : float
         Fraction of the acceleration limit that the curvature speed cap leaves to
         the lateral acceleration v² k (the rest is for speeding up and slowing down).
@@ -204,7 +205,8 @@ def motion_limits(palette: Palette, options: DecoupledOptions | None = None) -> 
     Speed: the fastest trim speed (:func:`gracenav.library.max_trim_speed`).
     Acceleration: κ · ``primitive_options.max_lean``, the lean bound of the maneuvers
     (for the linearised model the flat output accelerates at ÿ = κ φ).
-    Jerk: κ · the largest lean rate of the palette's primitives (ẏ⃛ = κ φ̇).
+    Jerk: κ · the largest lean rate of the palette's primitives (jerk = κ φ̇); both
+    acceleration and jerk are scaled by ``options.accel_scale``.
     """
     from gracenav.library import max_trim_speed
     from gracenav.shape_planner import flat_output_gain
