@@ -56,6 +56,7 @@ from scipy.ndimage import uniform_filter1d
 
 from gracenav.errors import ConfigError, PlanningError
 from gracenav.params import BallbotParams
+from gracenav.replanning import ReplanEvent
 
 if TYPE_CHECKING:
     from gracenav.control import ControllerGains
@@ -902,6 +903,7 @@ def track_decoupled(
     ticks = 0
     max_ticks = max(1, math.ceil(max_time / dt - 1e-9))
     replans = 0
+    log: list[ReplanEvent] = []  # the replans that made a new plan
     status = TaskStatus.TIMEOUT
     tracking = not at_goal
     hold_xy = goal_xy
@@ -961,6 +963,7 @@ def track_decoupled(
             )
         except PlanningError:
             return False
+        log.append(ReplanEvent(t, "tracking_error", plans[-1].seconds, 0, 0))
         return True
 
     while ticks < max_ticks:
@@ -1016,6 +1019,7 @@ def track_decoupled(
         goals_reached=((t, 0),) if status is TaskStatus.GOAL_REACHED else (),
         tree_seconds=tuple(pl.seconds for pl in plans),
         radius=plant_params.ball_radius,
+        replans=tuple(log),
     )
     return episode, plans
 
@@ -1048,7 +1052,13 @@ def run_decoupled(
     """
     from gracenav.execution import ExecutionOptions
     from gracenav.palette import load_palette
-    from gracenav.scenarios import ScenarioResult, _summarise, apply_plant_factors, check_scenario
+    from gracenav.scenarios import (
+        ScenarioResult,
+        _summarise,
+        apply_plant_factors,
+        check_scenario,
+        load_scenario_map,
+    )
     from gracenav.simulate import SimulationOptions, state_from_position
 
     if scenario.kind != "point_to_point":
@@ -1058,7 +1068,12 @@ def run_decoupled(
         )
     palette = palette if palette is not None else load_palette()
     plant_params = apply_plant_factors(scenario, params if params is not None else palette.params)
-    world_map = _load_scenario_map(scenario)
+    if scenario.moving_obstacles:
+        raise ConfigError(
+            f"{scenario.source}: 'moving_obstacles' are not supported by the decoupled "
+            "baseline (it plans once on the static map); use the gracenav planner"
+        )
+    world_map = load_scenario_map(scenario)
     check_scenario(scenario, world_map, palette)
     options = options if options is not None else DecoupledOptions()
     limits = motion_limits(palette, options)
@@ -1108,23 +1123,3 @@ def run_decoupled(
         library=None,
         plant_params=plant_params,
     )
-
-
-def _load_scenario_map(scenario: Scenario) -> WorldMap:
-    """The scenario's map, inline-map errors naming the scenario file (as
-    :func:`gracenav.scenarios.run_scenario`)."""
-    from gracenav.errors import MapError
-    from gracenav.world import load_map
-    from gracenav.world.occupancy import INLINE
-
-    try:
-        return load_map(scenario.map_source)
-    except MapError as exc:
-        if not isinstance(scenario.map_source, dict):
-            raise
-        msg = str(exc)
-        head = f"{INLINE}: '"
-        where = (
-            "'map." + msg[len(head) :] if msg.startswith(head) else msg.replace(INLINE, "'map'", 1)
-        )
-        raise MapError(f"{scenario.source}: {where}") from None
