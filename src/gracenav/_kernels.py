@@ -25,6 +25,7 @@ __all__ = [
     "closed_loop",
     "control_law",
     "dynamics",
+    "rebuild_fine",
     "mass_matrix",
 ]
 
@@ -83,6 +84,62 @@ def dynamics(c, fr, x, tau, force, wm, wh, wj, wr, xdot):
     for i in range(4):
         xdot[i] = qd[i]
     solve_spd(wm, wr, xdot[4:])
+
+
+@njit(cache=True, error_model="numpy")
+def rebuild_fine(cstates, cacc, cfirst, ffirst, intervals, basis, h, c, fr, r, st, acc, tau, pos):
+    """Samples at every tick from every ``stride``-th one, for several primitives.
+
+    Primitive k has ``intervals[k]`` coarse intervals whose (q, q̇) and q̈ are the rows
+    ``cfirst[k]`` on of ``cstates`` (·, 8) and ``cacc`` (·, 4); its fine samples are
+    the rows ``ffirst[k]`` on of ``st`` (·, 8: q, q̇), ``acc`` (·, 4), ``tau`` (·, 2,
+    :func:`inverse_dynamics`) and ``pos`` (·, 6: ball position, velocity and
+    acceleration, r (θ + φ) and its derivatives). Between coarse samples q, q̇, q̈ come
+    from the quintic Hermite interpolant with ``basis`` (3, stride, 6) (values, first and
+    second derivatives in the unit interval); ``h`` is the coarse step (s)."""
+    stride = basis.shape[1]
+    wm = np.empty((4, 4))
+    wh = np.empty(4)
+    for k in range(cfirst.shape[0]):
+        for m in range(intervals[k] + 1):
+            a = cfirst[k] + m
+            last = m == intervals[k]
+            for j in range(1 if last else stride):
+                row = ffirst[k] + m * stride + j
+                for i in range(4):
+                    if j == 0:
+                        st[row, i] = cstates[a, i]
+                        st[row, 4 + i] = cstates[a, 4 + i]
+                        acc[row, i] = cacc[a, i]
+                        continue
+                    e0 = cstates[a, i]
+                    e1 = h * cstates[a, 4 + i]
+                    e2 = h * h * cacc[a, i]
+                    e3 = cstates[a + 1, i]
+                    e4 = h * cstates[a + 1, 4 + i]
+                    e5 = h * h * cacc[a + 1, i]
+                    b = basis[0, j]
+                    st[row, i] = (
+                        b[0] * e0 + b[1] * e1 + b[2] * e2 + b[3] * e3 + b[4] * e4 + b[5] * e5
+                    )
+                    b = basis[1, j]
+                    st[row, 4 + i] = (
+                        b[0] * e0 + b[1] * e1 + b[2] * e2 + b[3] * e3 + b[4] * e4 + b[5] * e5
+                    ) / h
+                    b = basis[2, j]
+                    acc[row, i] = (
+                        b[0] * e0 + b[1] * e1 + b[2] * e2 + b[3] * e3 + b[4] * e4 + b[5] * e5
+                    ) / (h * h)
+                mass_matrix(c, st[row, :4], wm)
+                bias(c, st[row, :4], st[row, 4:], wh)
+                for i in range(2):
+                    s = wh[i] + friction(fr, st[row, 4 + i])
+                    for jj in range(4):
+                        s += wm[i, jj] * acc[row, jj]
+                    tau[row, i] = s
+                    pos[row, i] = r * (st[row, i] + st[row, 2 + i])
+                    pos[row, 2 + i] = r * (st[row, 4 + i] + st[row, 6 + i])
+                    pos[row, 4 + i] = r * (acc[row, i] + acc[row, 2 + i])
 
 
 @njit(cache=True, error_model="numpy")

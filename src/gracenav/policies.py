@@ -298,69 +298,52 @@ class SampledPrimitive:
         ``items``: (states, accelerations, stride, meta) with ``meta`` holding the
         keyword arguments name, kind, dt, displacement, start_velocity, end_velocity.
         """
+        from gracenav._kernels import rebuild_fine
         from gracenav.model.ballbot3d import Ballbot3D
 
-        pieces: list[tuple[FloatArray, FloatArray, FloatArray]] = [
-            (np.zeros((0, 4)), np.zeros((0, 4)), np.zeros((0, 4)))
-        ] * len(items)
+        intervals = np.array([it[0].shape[0] - 1 for it in items], dtype=np.int64)
+        strides = np.array([int(it[2]) for it in items], dtype=np.int64)
+        rows = intervals * strides + 1
+        ffirst = np.concatenate([[0], np.cumsum(rows)[:-1]]).astype(np.int64)
+        total = int(rows.sum())
+        st = np.empty((total, 8))
+        acc = np.empty((total, 4))
+        tau = np.empty((total, 2))
+        pos = np.empty((total, 6))
+        c = Ballbot3D(params).constants()
+        fr = np.array([params.coulomb_friction, params.viscous_friction, params.friction_smoothing])
         by_step: dict[tuple[int, float], list[int]] = {}
         for k, (_, _, stride, meta) in enumerate(items):
             by_step.setdefault((int(stride), float(meta["dt"])), []).append(k)
         for (stride, dt), ks in by_step.items():
-            h = stride * dt
-            basis = _quintic_hermite(np.arange(stride) / stride)  # (3, stride, 6)
-            coefs, counts = [], []
-            for k in ks:
-                st, acc = items[k][0], items[k][1]
-                q0, q1 = st[:-1, :4], st[1:, :4]
-                v0, v1 = st[:-1, 4:], st[1:, 4:]
-                a0, a1 = acc[:-1], acc[1:]
-                coefs.append(np.concatenate([q0, h * v0, h * h * a0, q1, h * v1, h * h * a1], 1))
-                counts.append(st.shape[0] - 1)
-            m = int(sum(counts))
-            coef = np.concatenate(coefs).reshape(m, 6, 4).transpose(1, 0, 2).reshape(6, m * 4)
-
-            def interpolate(b: FloatArray, coef: FloatArray = coef, m: int = m) -> FloatArray:
-                out: FloatArray = (b @ coef).reshape(b.shape[0], m, 4).transpose(1, 0, 2)
-                return out.reshape(m * b.shape[0], 4)
-
-            q_all = interpolate(basis[0])
-            qd_all = interpolate(basis[1]) / h
-            qdd_all = interpolate(basis[2]) / (h * h)
-            start = 0
-            for k, n in zip(ks, counts, strict=True):
-                st, acc = items[k][0], items[k][1]
-                sl = slice(start * stride, (start + n) * stride)
-                pieces[k] = (
-                    np.concatenate([q_all[sl], st[-1:, :4]]),
-                    np.concatenate([qd_all[sl], st[-1:, 4:]]),
-                    np.concatenate([qdd_all[sl], acc[-1:]]),
-                )
-                start += n
-        q = np.concatenate([p[0] for p in pieces])
-        qd = np.concatenate([p[1] for p in pieces])
-        qdd = np.concatenate([p[2] for p in pieces])
-        model = Ballbot3D(params)
-        mm = model.mass_matrix(q)
-        tau = (mm[:, :2, :] * qdd[:, None, :]).sum(axis=2)
-        tau += model.bias(q, qd)[:, :2] + model.friction(qd)
-        r = params.ball_radius
-        position = r * np.concatenate(
-            [q[:, :2] + q[:, 2:], qd[:, :2] + qd[:, 2:], qdd[:, :2] + qdd[:, 2:]], axis=1
-        )
+            coarse = [np.asarray(items[k][0], dtype=np.float64) for k in ks]
+            cfirst = np.concatenate([[0], np.cumsum([a.shape[0] for a in coarse])[:-1]])
+            rebuild_fine(
+                np.ascontiguousarray(np.concatenate(coarse)),
+                np.ascontiguousarray(np.concatenate([items[k][1] for k in ks]), dtype=np.float64),
+                cfirst.astype(np.int64),
+                ffirst[ks],
+                intervals[ks],
+                np.ascontiguousarray(_quintic_hermite(np.arange(stride) / stride)),
+                stride * dt,
+                c,
+                fr,
+                float(params.ball_radius),
+                st,
+                acc,
+                tau,
+                pos,
+            )
         out = []
-        start = 0
         for k, (_, _, _, meta) in enumerate(items):
-            n = pieces[k][0].shape[0]
-            sl = slice(start, start + n)
-            start += n
+            sl = slice(int(ffirst[k]), int(ffirst[k] + rows[k]))
             out.append(
                 cls(
-                    duration=(n - 1) * float(meta["dt"]),
-                    states=np.ascontiguousarray(np.concatenate([q[sl], qd[sl]], axis=1)),
-                    accelerations=np.ascontiguousarray(qdd[sl]),
-                    inputs=np.ascontiguousarray(tau[sl]),
-                    position=np.ascontiguousarray(position[sl]),
+                    duration=(int(rows[k]) - 1) * float(meta["dt"]),
+                    states=st[sl],
+                    accelerations=acc[sl],
+                    inputs=tau[sl],
+                    position=pos[sl],
                     **meta,
                 )
             )
