@@ -5,9 +5,11 @@ Each run is the point-to-point task (1, 1) -> (4, 4) at rest on
 one push on the body of uniform random direction, magnitude uniform in
 [0, max impulse] N s, at a time uniform over the unpushed run. For each impulse
 bin the table gives: runs that reached the goal; runs that left a domain and were
-caught by a verified policy (the state was in its start domain S); runs that
-entered balancing mode (the unverified last resort); runs whose footprint touched
-an obstacle or a wall (true positions against the map's clearance).
+caught by a verified policy (the state was in its start domain S: a library policy
+or a catch placed at the state, gracenav.capture), and of those the runs caught by a
+catch; runs that entered balancing mode (the unverified last resort); runs whose
+footprint touched an obstacle or a wall (true positions against the map's
+clearance).
 
 ``--mode paper`` is the paper's hybrid controller (no resumption from balancing
 mode: the task stops there); ``--mode fallback`` resumes from it.
@@ -59,6 +61,7 @@ class Outcome:
     reached: bool
     status: str
     verified_recoveries: int
+    captures: int
     balancing: bool
     contact: bool
     min_clearance: float
@@ -86,16 +89,12 @@ def _run(args: tuple[float, float, float]) -> Outcome:
     clearance = robot.library.world_map.clearance(xy)
     inside = robot.library.world_map.is_free(xy)
     min_clear = float(np.min(np.where(inside, clearance, 0.0)))
-    recoveries = sum(
-        1
-        for e in ep.events
-        if e.reason in (EventReason.DOMAIN_EXIT, EventReason.NOT_IN_GOAL) and e.to_policy >= 0
-    )
     return Outcome(
         impulse=magnitude,
         reached=ep.reached_goal,
         status=ep.status.value,
-        verified_recoveries=recoveries,
+        verified_recoveries=ep.verified_recoveries,
+        captures=sum(1 for e in ep.events if e.reason is EventReason.CAPTURE),
         balancing=any(e.reason is EventReason.BALANCING for e in ep.events),
         contact=min_clear < FOOTPRINT,
         min_clearance=min_clear,
@@ -137,7 +136,15 @@ def main() -> None:
         f"{args.runs} pushed runs, mode {args.mode}, unpushed run {unpushed.time[-1]:.2f} s, "
         f"{len(_robot.library)} policies; {wall:.1f} s wall on {args.processes} processes"
     )
-    header = ("impulse (N s)", "runs", "goal reached", "verified recovery", "balancing", "contact")
+    header = (
+        "impulse (N s)",
+        "runs",
+        "goal reached",
+        "verified recovery",
+        "of which capture",
+        "balancing",
+        "contact",
+    )
     rows = [header]
     edges = list(BINS) + ([args.max_impulse] if args.max_impulse > BINS[-1] else [])
     for lo, hi in itertools.pairwise(edges):
@@ -150,6 +157,7 @@ def main() -> None:
                 str(len(sel)),
                 f"{sum(o.reached for o in sel)} ({100 * np.mean([o.reached for o in sel]):.0f} %)",
                 str(sum(o.verified_recoveries > 0 for o in sel)),
+                str(sum(o.captures > 0 for o in sel)),
                 str(sum(o.balancing for o in sel)),
                 str(sum(o.contact for o in sel)),
             )
@@ -161,6 +169,7 @@ def main() -> None:
             f"{sum(o.reached for o in results)} "
             f"({100 * np.mean([o.reached for o in results]):.1f} %)",
             str(sum(o.verified_recoveries > 0 for o in results)),
+            str(sum(o.captures > 0 for o in results)),
             str(sum(o.balancing for o in results)),
             str(sum(o.contact for o in results)),
         )

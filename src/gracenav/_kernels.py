@@ -25,8 +25,8 @@ __all__ = [
     "closed_loop",
     "control_law",
     "dynamics",
-    "rebuild_fine",
     "mass_matrix",
+    "rebuild_fine",
 ]
 
 mass_matrix = njit(cache=True, error_model="numpy")(_gen.mass_matrix)

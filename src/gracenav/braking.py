@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -52,7 +53,10 @@ from gracenav.policies import (
 )
 from gracenav.simulate import DEFAULT_CONTROL_RATE
 
-__all__ = ["braking_name", "braking_policies", "braking_primitive"]
+if TYPE_CHECKING:
+    from gracenav.shape_planner import ShapePlannerResult
+
+__all__ = ["braking_name", "braking_policies", "braking_primitive", "sampled_with_rest_tail"]
 
 FloatArray = NDArray[np.float64]
 
@@ -83,7 +87,6 @@ def braking_primitive(
     params = gains.params
     lattice = step * np.hypot(*direction)
     unit = np.asarray(direction, dtype=float) / np.hypot(*direction)
-    dt = 1.0 / DEFAULT_CONTROL_RATE
     for k in range(1, 64):
         dist = k * lattice
         duration = math.ceil(2.0 * dist / speed / _DURATION_STEP - 1e-9) * _DURATION_STEP
@@ -100,29 +103,46 @@ def braking_primitive(
             and res.peak_torque <= params.torque_limit
         ):
             continue
-        n = round(duration / dt)
-        m = round(options.tail / dt)
-        s = res.trajectory.sample(np.arange(n + 1) * dt)
-        rest = s.states[-1].copy()
-        rest[2:4] = 0.0
-        rest[4:] = 0.0
-        states = np.concatenate([s.states, np.repeat(rest[None], m, axis=0)])
-        pos = np.concatenate([s.position, np.repeat(s.position[-1:], m, axis=0)])
-        pos[n + 1 :, 2:] = 0.0
-        return SampledPrimitive(
-            name=braking_name(speed, direction),
-            kind=PrimitiveKind.MANEUVER,
-            duration=(n + m) * dt,
-            dt=dt,
-            displacement=pos[-1, :2].copy(),
-            start_velocity=v0,
-            end_velocity=np.zeros(2),
-            states=np.ascontiguousarray(states),
-            accelerations=np.ascontiguousarray(np.concatenate([s.accelerations, np.zeros((m, 4))])),
-            inputs=np.ascontiguousarray(np.concatenate([s.inputs, np.zeros((m, 2))])),
-            position=np.ascontiguousarray(pos),
+        return sampled_with_rest_tail(
+            res, duration, options.tail, name=braking_name(speed, direction), start_velocity=v0
         )
     return None
+
+
+def sampled_with_rest_tail(
+    result: ShapePlannerResult,
+    duration: float,
+    tail: float,
+    *,
+    name: str,
+    start_velocity: FloatArray,
+) -> SampledPrimitive:
+    """The planned trajectory ``result`` (lasting ``duration`` s, ending at rest) sampled
+    at the control ticks, followed by ``tail`` seconds of rest at its end point: a
+    maneuver whose rest tail lets the tracking error settle into G."""
+    dt = 1.0 / DEFAULT_CONTROL_RATE
+    n = round(duration / dt)
+    m = round(tail / dt)
+    s = result.trajectory.sample(np.arange(n + 1) * dt)
+    rest = s.states[-1].copy()
+    rest[2:4] = 0.0
+    rest[4:] = 0.0
+    states = np.concatenate([s.states, np.repeat(rest[None], m, axis=0)])
+    pos = np.concatenate([s.position, np.repeat(s.position[-1:], m, axis=0)])
+    pos[n + 1 :, 2:] = 0.0
+    return SampledPrimitive(
+        name=name,
+        kind=PrimitiveKind.MANEUVER,
+        duration=(n + m) * dt,
+        dt=dt,
+        displacement=pos[-1, :2].copy(),
+        start_velocity=np.asarray(start_velocity, dtype=float),
+        end_velocity=np.zeros(2),
+        states=np.ascontiguousarray(states),
+        accelerations=np.ascontiguousarray(np.concatenate([s.accelerations, np.zeros((m, 4))])),
+        inputs=np.ascontiguousarray(np.concatenate([s.inputs, np.zeros((m, 2))])),
+        position=np.ascontiguousarray(pos),
+    )
 
 
 def braking_policies(

@@ -23,6 +23,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from gracenav.capture import CapturePlan, PlacedPolicy, capture_for
 from gracenav.domains import EllipsoidalDomain
 from gracenav.errors import ConfigError, PlanningError
 from gracenav.graph import PreparesGraph
@@ -47,6 +48,7 @@ from gracenav.simulate import (
 from gracenav.world.moving import MovingObstacle
 
 __all__ = [
+    "CAPTURE",
     "TERMINAL",
     "Episode",
     "EventReason",
@@ -82,6 +84,9 @@ class EventReason(enum.Enum):
     """No unblocked way to the goal: an unblocked rest trim holds the robot."""
     RESUMED = "resumed"
     """The way cleared while holding: the task goes on."""
+    CAPTURE = "capture"
+    """No library policy's S contains the state: a catch placed at the state (and a
+    shift) bring it onto a rest trim (:mod:`gracenav.capture`)."""
 
     @property
     def graceful(self) -> bool:
@@ -150,6 +155,9 @@ class ExecutionOptions:
     resume_from_balancing : bool
         Resume the task from balancing mode once a start domain contains the state (a
         gracenav extension: the paper assumes 100 % coverage and stops the task).
+    capture : bool
+        When no library policy's start domain contains the state, place a verified
+        catch at it (:mod:`gracenav.capture`) before falling back to balancing mode.
     sensing : ObstacleSensing
         Range, period and margin of the moving-obstacle sensing (used only when a run
         has moving obstacles; :mod:`gracenav.replanning`).
@@ -164,6 +172,7 @@ class ExecutionOptions:
     balance_time: float = 5.0
     balance_chunk: float = 0.125
     resume_from_balancing: bool = True
+    capture: bool = True
     simulation: SimulationOptions = field(default_factory=SimulationOptions)
     sensing: ObstacleSensing = field(default_factory=ObstacleSensing)
 
@@ -264,7 +273,11 @@ class Episode:
         """Switches after a domain exit (or an end outside G) straight into a policy
         whose start domain contains the state: recoveries the method guarantees."""
         forced = (EventReason.DOMAIN_EXIT, EventReason.NOT_IN_GOAL)
-        return sum(1 for e in self.events if e.reason in forced and e.to_policy >= 0)
+        return sum(
+            1
+            for e in self.events
+            if (e.reason in forced and e.to_policy >= 0) or e.reason is EventReason.CAPTURE
+        )
 
     @property
     def balancing_time(self) -> float:
@@ -311,6 +324,8 @@ _ON_LATTICE = 1e-9
 #: Policy index of the terminal regulator in :attr:`Episode.policy` and
 #: :class:`SwitchEvent` (it is not a library row; −1 is balancing mode).
 TERMINAL = -2
+#: Policy index of a placed catch or shift (:mod:`gracenav.capture`).
+CAPTURE = -4
 
 
 @dataclass(frozen=True)
@@ -651,6 +666,17 @@ class HybridController:
                     return np.asarray(q, dtype=float)
         return here
 
+    def capture_plan(self, x: ArrayLike, tree: PolicyTree) -> CapturePlan | None:
+        """The cheapest verified capture (catch, shift, rest trim toward the tree's goal)
+        of the model state ``x`` (8,), or None (see :class:`gracenav.capture.Capture`).
+        Settled catches are considered when the lean and lean rate (norms over both
+        axes) are within their band of upright."""
+        capture = capture_for(self.library)
+        xs = np.asarray(x, dtype=float)
+        p = position_state(xs, self.params.ball_radius)
+        deviation = (float(np.hypot(*xs[2:4])), float(np.hypot(*xs[6:8])))
+        return capture.plan(p, lean_deviation=deviation, cost_to_go=tree.cost_to_go)
+
     def best_policy(self, p: ArrayLike, tree: PolicyTree) -> int:
         """The policy with the lowest cost-to-go whose S contains ``p`` (−1 if none).
 
@@ -770,9 +796,17 @@ class HybridController:
         stalled = 0  # consecutive policies that ended at their first tick
         status = TaskStatus.TIMEOUT
         offset = 0  # ticks of the current policy already run (moving obstacles)
+        captured: list[PlacedPolicy] = []  # placed catch and shift still to run
+        capture_row = -1  # the rest trim a capture ends on
         while ticks < max_ticks:
             term = terminal_seq[k_goal]
-            if current == TERMINAL and term is not None:
+            if current == CAPTURE:
+                placed = captured[0]
+                prim = placed.primitive
+                ref, ref_pos = placed.reference(r)
+                _, shapes = placed.outer_monitor()
+                is_goal = False
+            elif current == TERMINAL and term is not None:
                 prim = term.policy.primitive
                 ref, ref_pos = instantiated_reference(prim, 0, term.goal_xy, r)
                 _, shapes = term.policy.outer_monitor()
@@ -844,7 +878,9 @@ class HybridController:
                 if split and res.stop_reason is StopReason.COMPLETED:
                     offset += last
                     blocked_now = (
-                        dyn.disc_blocked(
+                        bool(dyn.known)
+                        if current == CAPTURE
+                        else dyn.disc_blocked(
                             term.goal_xy,
                             float(term.policy.outer_extents(0.0)[0]),
                             term.policy.duration,
@@ -881,6 +917,18 @@ class HybridController:
             if res.stop_reason is StopReason.DOMAIN_EXIT:
                 reason = EventReason.DOMAIN_EXIT
                 nxt = self.best_policy(p, tree)
+            elif current == CAPTURE:
+                if captured[0].goal_domain.contains(p):
+                    captured.pop(0)
+                    reason = EventReason.GRACEFUL
+                    if captured:
+                        nxt = CAPTURE
+                    else:
+                        nxt = capture_row
+                        if not self.library.policy(nxt).start_domain.contains(p):
+                            nxt, reason = self.best_policy(p, tree), EventReason.NOT_IN_GOAL
+                else:
+                    reason, nxt = EventReason.NOT_IN_GOAL, self.best_policy(p, tree)
             elif current == TERMINAL and term is not None:
                 if near_goal:
                     goals_reached.append((t, k_goal))
@@ -933,6 +981,13 @@ class HybridController:
                 if wait_row >= 0:  # obstacles block the way: wait on a free rest trim
                     events.append(SwitchEvent(t, current, wait_row, EventReason.BLOCKED, ticks))
                     current, holding = wait_row, True
+                    continue
+            if nxt == -1 and options.capture and (dyn is None or not dyn.known):
+                plan = self.capture_plan(x, tree)
+                if plan is not None:
+                    events.append(SwitchEvent(t, current, CAPTURE, EventReason.CAPTURE, ticks))
+                    captured, capture_row = list(plan.policies), plan.rest_row
+                    current, offset = CAPTURE, 0
                     continue
             if nxt == -1:
                 # Balancing mode: station keeping at the nearest rest-trim start of the

@@ -24,9 +24,10 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
+from numpy.typing import NDArray
 
 from gracenav._cache import cache_dir
 from gracenav._io import atomic_write_bytes
@@ -35,6 +36,7 @@ from gracenav.errors import CacheError, ConfigError
 from gracenav.params import BallbotParams
 from gracenav.policies import (
     BrakingOptions,
+    CatchOptions,
     DomainRadii,
     DomainShape,
     MotionPolicy,
@@ -59,7 +61,7 @@ __all__ = [
     "shipped_palette_path",
 ]
 
-PALETTE_FORMAT = 4
+PALETTE_FORMAT = 5
 #: Primitive name of the capture regulators (a rest trim held
 #: ``RegulatorOptions.duration``).
 REGULATOR_NAME = "regulate"
@@ -67,7 +69,7 @@ REGULATOR_NAME = "regulate"
 #: rebuilt exactly enough (see SampledPrimitive.from_coarse) when loaded.
 COARSE_STRIDE = 8
 #: Bumped whenever the planner, controller or verification code changes results.
-ALGORITHM_VERSION = "3"
+ALGORITHM_VERSION = "4"
 #: Largest relative difference (see ControllerGains.relative_difference) between a
 #: palette's stored gains and the gains requested of it that still counts as the
 #: same design. Rebuilding the gains on another numpy/scipy build changes them by
@@ -141,6 +143,9 @@ class Palette:
         See :func:`palette_key`.
     primitive_options : PrimitiveSetOptions
         Options the primitive set Σ(d) was planned with.
+    catches, shifts : tuple of MotionPolicy
+        The verified catches and shifts (:mod:`gracenav.capture`): placed at the
+        robot's state, never on the lattice, so not among ``policies``.
     """
 
     policies: tuple[MotionPolicy, ...]
@@ -151,6 +156,8 @@ class Palette:
     options: VerificationOptions
     key: str
     primitive_options: PrimitiveSetOptions = field(default_factory=PrimitiveSetOptions)
+    catches: Sequence[MotionPolicy] = ()
+    shifts: Sequence[MotionPolicy] = ()
     #: Tables other modules derive from this palette alone (e.g. instantiation's),
     #: computed once and kept with it.
     _derived: dict[str, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
@@ -211,7 +218,14 @@ class Palette:
         arrays: dict[str, np.ndarray] = {}
         header["primitives"] = []
         prim_ids: dict[int, int] = {}
-        for pol in self.policies:
+        header["catches"] = []
+        header["shifts"] = []
+        groups = (
+            ("policies", self.policies),
+            ("catches", self.catches),
+            ("shifts", self.shifts),
+        )
+        for group, pol in ((g, p) for g, pols in groups for p in pols):
             prim = pol.primitive
             if id(prim) not in prim_ids:
                 i = prim_ids[id(prim)] = len(header["primitives"])
@@ -229,7 +243,7 @@ class Palette:
                     }
                 )
                 arrays[f"p{i}_states"], arrays[f"p{i}_accelerations"] = prim.coarse(stride)
-            header["policies"].append(
+            header[group].append(
                 {
                     "primitive": prim_ids[id(prim)],
                     "label": pol.label,
@@ -240,6 +254,7 @@ class Palette:
                     "report": None if pol.report is None else dataclasses.asdict(pol.report),
                     "capture": pol.capture,
                     "start_correlation": pol.start_correlation,
+                    "outer_cross": pol.outer_cross,
                 }
             )
         arrays["header"] = np.frombuffer(json.dumps(header).encode(), dtype=np.uint8)
@@ -280,6 +295,8 @@ class Palette:
                 opts["regulator"] = RegulatorOptions.from_dict(opts["regulator"])
             if opts.get("braking") is not None:
                 opts["braking"] = BrakingOptions.from_dict(opts["braking"])
+            if opts.get("catch") is not None:
+                opts["catch"] = CatchOptions.from_dict(opts["catch"])
             options = VerificationOptions(**opts)
             primitive_options = PrimitiveSetOptions.from_dict(header["primitive_options"])
             items = [
@@ -298,38 +315,19 @@ class Palette:
                 )
                 for i, meta in enumerate(header["primitives"])
             ]
-            # One interpolation and one evaluation of the equations of motion for all.
-            primitives = SampledPrimitive.from_coarse_many(items, params)
-            for prim, meta in zip(primitives, header["primitives"], strict=True):
-                if abs(prim.duration - float(meta["duration"])) > 1e-9:
-                    raise ValueError(f"primitive {meta['name']}: samples do not span its duration")
-            policies = []
-            for meta in header["policies"]:
-                rep = meta["report"]
-                policies.append(
-                    MotionPolicy(
-                        primitive=primitives[int(meta["primitive"])],
-                        gains=gains,
-                        start_radii=DomainRadii(**meta["start_radii"]),
-                        goal_radii=DomainRadii(**meta["goal_radii"]),
-                        outer_factors=(
-                            float(meta["outer_factors"][0]),
-                            float(meta["outer_factors"][1]),
-                        ),
-                        correlation=float(meta["correlation"]),
-                        report=None if rep is None else VerificationReport(**rep),
-                        label=str(meta["label"]),
-                        capture=bool(meta["capture"]),
-                        start_correlation=(
-                            None
-                            if meta["start_correlation"] is None
-                            else float(meta["start_correlation"])
-                        ),
-                    )
-                )
+            policies = _policies_from(
+                header["policies"], items, header["primitives"], params, gains
+            )
+            # Catches and shifts are rebuilt on first use (they serve captures only).
+            placed = {
+                g: PlacedPolicies(header.get(g, []), items, header["primitives"], params, gains)
+                for g in ("catches", "shifts")
+            }
             rejected = tuple((str(n), VerificationReport(**r)) for n, r in header["rejected"])
             return cls(
-                policies=tuple(policies),
+                policies=policies,
+                catches=placed["catches"],
+                shifts=placed["shifts"],
                 rejected=rejected,
                 duplicates=tuple((str(a), str(b)) for a, b in header["duplicates"]),
                 d=float(header["d"]),
@@ -409,6 +407,105 @@ def _mismatch(
             f"(tolerance {GAINS_RTOL:.0e}): the same design inputs gave other gains"
         )
     return None
+
+
+def _policies_from(
+    entries: Sequence[dict[str, Any]],
+    items: Sequence[tuple[NDArray[Any], NDArray[Any], int, dict[str, Any]]],
+    primitive_meta: Sequence[dict[str, Any]],
+    params: BallbotParams,
+    gains: ControllerGains,
+) -> tuple[MotionPolicy, ...]:
+    """The policies of the header ``entries``, with their primitives rebuilt from the
+    coarse ``items`` (one interpolation and one evaluation of the equations of motion
+    for all of them)."""
+    used = sorted({int(meta["primitive"]) for meta in entries})
+    rebuilt = SampledPrimitive.from_coarse_many([items[i] for i in used], params)
+    primitives = dict(zip(used, rebuilt, strict=True))
+    for i, prim in primitives.items():
+        if abs(prim.duration - float(primitive_meta[i]["duration"])) > 1e-9:
+            raise ValueError(
+                f"primitive {primitive_meta[i]['name']}: samples do not span its duration"
+            )
+    out = []
+    for meta in entries:
+        rep = meta["report"]
+        out.append(
+            MotionPolicy(
+                primitive=primitives[int(meta["primitive"])],
+                gains=gains,
+                start_radii=DomainRadii(**meta["start_radii"]),
+                goal_radii=DomainRadii(**meta["goal_radii"]),
+                outer_factors=(float(meta["outer_factors"][0]), float(meta["outer_factors"][1])),
+                correlation=float(meta["correlation"]),
+                report=None if rep is None else VerificationReport(**rep),
+                label=str(meta["label"]),
+                capture=bool(meta["capture"]),
+                start_correlation=(
+                    None if meta["start_correlation"] is None else float(meta["start_correlation"])
+                ),
+                outer_cross=None if meta.get("outer_cross") is None else float(meta["outer_cross"]),
+            )
+        )
+    return tuple(out)
+
+
+class PlacedPolicies(Sequence[MotionPolicy]):
+    """A palette's catches or shifts, rebuilt from the file on first use.
+
+    They serve captures only (:mod:`gracenav.capture`), so loading a palette does not
+    pay for them; the data stays with the object (it pickles to worker processes).
+    """
+
+    def __init__(
+        self,
+        entries: Sequence[dict[str, Any]],
+        items: Sequence[tuple[NDArray[Any], NDArray[Any], int, dict[str, Any]]],
+        primitive_meta: Sequence[dict[str, Any]],
+        params: BallbotParams,
+        gains: ControllerGains,
+    ) -> None:
+        used = {int(meta["primitive"]) for meta in entries}
+        self._entries = list(entries)
+        self._items = {i: items[i] for i in used}
+        self._meta = {i: primitive_meta[i] for i in used}
+        self._params = params
+        self._gains = gains
+        self._policies: tuple[MotionPolicy, ...] | None = None
+
+    def _get(self) -> tuple[MotionPolicy, ...]:
+        if self._policies is None:
+            order = sorted(self._items)
+            index = {i: k for k, i in enumerate(order)}
+            entries = [{**m, "primitive": index[int(m["primitive"])]} for m in self._entries]
+            self._policies = _policies_from(
+                entries,
+                [self._items[i] for i in order],
+                [self._meta[i] for i in order],
+                self._params,
+                self._gains,
+            )
+        return self._policies
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    @overload
+    def __getitem__(self, i: int) -> MotionPolicy: ...
+    @overload
+    def __getitem__(self, i: slice) -> Sequence[MotionPolicy]: ...
+    def __getitem__(self, i: int | slice) -> MotionPolicy | Sequence[MotionPolicy]:
+        return self._get()[i]
+
+    def __eq__(self, other: object) -> bool:
+        if isinstance(other, Sequence):
+            return tuple(self._get()) == tuple(other)
+        return NotImplemented
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __repr__(self) -> str:
+        return f"PlacedPolicies({len(self)} policies)"
 
 
 def _read_palette(path: Path) -> Palette:
@@ -611,6 +708,35 @@ def _braking_one(
     return braking_policies(prim, gains, options, shape)
 
 
+def _shift_cells(options: CatchOptions, d: float) -> list[tuple[int, int]]:
+    from gracenav.capture import shift_cells
+
+    return shift_cells(options, d)
+
+
+def _catch_one(
+    args: tuple[float, ControllerGains, VerificationOptions, DomainShape],
+) -> tuple[MotionPolicy, ...]:
+    """The catches from one speed (see :func:`gracenav.capture.catch_policies`)."""
+    from gracenav.capture import catch_policies
+    from gracenav.policies import RegulatorOptions, push_lean_table
+
+    speed, gains, options, shape = args
+    pushes = options.regulator or RegulatorOptions()  # the regulators' push table
+    push_leans = push_lean_table(gains, pushes.push_impulses, pushes.push_times)
+    return catch_policies(speed, gains, options, shape, push_leans)
+
+
+def _shift_one(
+    args: tuple[tuple[int, int], float, ControllerGains, VerificationOptions, DomainShape],
+) -> tuple[MotionPolicy, ...]:
+    """One shift (see :func:`gracenav.capture.shift_policies`)."""
+    from gracenav.capture import shift_policies
+
+    cell, d, gains, options, shape = args
+    return shift_policies(cell, d, gains, options, shape)
+
+
 def _rotation_duplicate(prim: SampledPrimitive, earlier: Sequence[SampledPrimitive]) -> str | None:
     """Name of an earlier primitive of which ``prim`` is a 90°, 180° or 270° rotation."""
     for other in earlier:
@@ -689,8 +815,21 @@ def build_palette(
             for dirn in brk.directions
         ]
     )
+    cat = options.catch
+    catch_jobs = [] if cat is None else [(v, gains, options, shape) for v in cat.speeds]
+    shift_jobs = (
+        [] if cat is None else [(c, d, gains, options, shape) for c in _shift_cells(cat, d)]
+    )
     results: list[MotionPolicy] = []
-    total = len(jobs) + len(brake_jobs) + (options.regulator is not None)
+    catches: list[MotionPolicy] = []
+    shifts: list[MotionPolicy] = []
+    total = (
+        len(jobs)
+        + len(brake_jobs)
+        + len(catch_jobs)
+        + len(shift_jobs)
+        + (options.regulator is not None)
+    )
     with Progress(total, "verifying policies", enabled=progress) as bar:
         if processes <= 1:
             for job in jobs:
@@ -701,6 +840,12 @@ def build_palette(
                 bar.update()
             for bjob in brake_jobs:
                 results.extend(_braking_one(bjob))
+                bar.update()
+            for cjob in catch_jobs:
+                catches.extend(_catch_one(cjob))
+                bar.update()
+            for sjob in shift_jobs:
+                shifts.extend(_shift_one(sjob))
                 bar.update()
         else:
             import multiprocessing as mp
@@ -715,18 +860,32 @@ def build_palette(
                     else None
                 )
                 brakes = [pool.submit(_braking_one, bjob) for bjob in brake_jobs]
+                catch_futs = [pool.submit(_catch_one, cjob) for cjob in catch_jobs]
+                shift_futs = [pool.submit(_shift_one, sjob) for sjob in shift_jobs]
                 for sized in pool.map(_size_one, jobs):
                     results.extend(sized)
                     bar.update()
                 for fut in brakes:
                     results.extend(fut.result())
                     bar.update()
+                for fut in catch_futs:
+                    catches.extend(fut.result())
+                    bar.update()
+                for fut in shift_futs:
+                    shifts.extend(fut.result())
+                    bar.update()
                 if regs is not None:
                     results.extend(regs.result())
                     bar.update()
-    passed = tuple(p for p in results if p.report is not None and p.report.passed)
+
+    def verified(pols: list[MotionPolicy]) -> tuple[MotionPolicy, ...]:
+        return tuple(p for p in pols if p.report is not None and p.report.passed)
+
+    passed = verified(results)
     rejected = tuple(
-        (p.name, p.report) for p in results if p.report is not None and not p.report.passed
+        (p.name, p.report)
+        for p in (*results, *catches, *shifts)
+        if p.report is not None and not p.report.passed
     )
     return Palette(
         policies=passed,
@@ -736,4 +895,6 @@ def build_palette(
         params=params,
         options=options,
         key=palette_key(params, gains, options, d),
+        catches=verified(catches),
+        shifts=verified(shifts),
     )

@@ -60,6 +60,7 @@ from gracenav.simulate import (
 
 __all__ = [
     "BrakingOptions",
+    "CatchOptions",
     "DomainRadii",
     "DomainShape",
     "MotionPolicy",
@@ -69,10 +70,12 @@ __all__ = [
     "SampledPrimitive",
     "VerificationOptions",
     "VerificationReport",
+    "combined_report",
     "domain_shape",
     "push_lean_table",
     "regulator_label",
     "regulator_policies",
+    "rotate_pairs_by",
     "scaled_variants",
     "size_policy",
     "variant_label",
@@ -237,6 +240,21 @@ class SampledPrimitive:
             accelerations=rotate_pairs(self.accelerations, k),
             inputs=rotate_pairs(self.inputs, k),
             position=rotate_pairs(self.position, k),
+        )
+
+    def rotated_by(self, angle: float) -> SampledPrimitive:
+        """The samples rotated by ``angle`` (rad) about the start (:func:`rotate_pairs_by`;
+        like :meth:`rotated`, not an exact symmetry of the 3D model, so policies placed
+        at any heading are verified at several)."""
+        return replace(
+            self,
+            displacement=rotate_pairs_by(self.displacement, angle),
+            start_velocity=rotate_pairs_by(self.start_velocity, angle),
+            end_velocity=rotate_pairs_by(self.end_velocity, angle),
+            states=rotate_pairs_by(self.states, angle),
+            accelerations=rotate_pairs_by(self.accelerations, angle),
+            inputs=rotate_pairs_by(self.inputs, angle),
+            position=rotate_pairs_by(self.position, angle),
         )
 
     def reference(self) -> Reference:
@@ -563,6 +581,107 @@ class BrakingOptions:
 
 
 @dataclass(frozen=True)
+class CatchOptions:
+    """The palette's catches and shifts: capture at the robot's own state (see
+    :mod:`gracenav.capture`).
+
+    Parameters
+    ----------
+    speeds : tuple of float
+        Speeds (m/s) of the catches, ascending; 0 is a rest hold.
+    max_lean : float
+        Largest planned body tilt of a catch or shift (rad).
+    min_duration, max_duration : float
+        Bounds of a catch's deceleration time (s).
+    tail : float
+        Rest held after a catch's deceleration and after a shift (s).
+    scales : tuple of float
+        Sizes S/G of a pushed catch's start domain, tried from the largest; the first
+        that verifies is kept.
+    settled_scales : tuple of float
+        The same for a settled catch.
+    headings : int
+        Placements verified, evenly spaced over [0°, 180°) (180° is an exact symmetry).
+    boundary_points : int
+        Initial states on the surface of S per lean variant and placement.
+    grid_divisions : int
+        Catches end on the grid of spacing d / grid_divisions, anchored where the
+        library's lattice is; shifts move between that grid and the lattice.
+    pushed_outer : tuple of float
+        D' extents of a catch verified with the lean a push leaves: position along and
+        across the motion (m), velocity (m/s); the hybrid controller uses such a catch
+        whatever the measured lean.
+    settled_outer : tuple of float
+        The same for a catch verified with the lean within ``settled_lean`` of the plan's.
+    settled_max_lean : float
+        Largest planned body tilt of a settled catch (rad): shorter stops, as the lean
+        left for feedback is not taken by a push.
+    settled_lean : tuple of float
+        Largest lean (rad) and lean rate (rad/s) deviation from the plan's of a settled
+        catch (verified at the corners of that band, along the motion).
+    shift_radius : float
+        Largest shift (m): at least the distance from a grid point to the nearest
+        point of the unhalved lattice (d/√2 = 0.354 m at d = 0.5 m), since rest
+        trims on the other sub-lattices of a halved lattice cannot reach every goal.
+    shift_scale : float
+        S/G of a shift (S ⊇ G, so a shift placed at a catch's end contains its G).
+    shift_outer : tuple of float
+        D' position (m) and velocity (m/s) extents of a shift (round), verified from the
+        plan lean and the settled band.
+    """
+
+    speeds: tuple[float, ...] = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1)
+    max_lean: float = math.radians(4.5)
+    min_duration: float = 0.5
+    max_duration: float = 6.0
+    tail: float = 1.0
+    scales: tuple[float, ...] = (1.5, 1.0)
+    settled_scales: tuple[float, ...] = (1.0,)
+    headings: int = 6
+    boundary_points: int = 48
+    grid_divisions: int = 16
+    pushed_outer: tuple[float, float, float] = (0.32, 0.16, 1.0)
+    settled_outer: tuple[float, float, float] = (0.10, 0.10, 0.5)
+    settled_max_lean: float = math.radians(6.0)
+    settled_lean: tuple[float, float] = (math.radians(0.5), math.radians(3.0))
+    shift_radius: float = 0.375
+    shift_scale: float = 1.25
+    shift_outer: tuple[float, float] = (0.12, 0.5)
+
+    def __post_init__(self) -> None:
+        for name in (
+            "speeds",
+            "scales",
+            "settled_scales",
+            "pushed_outer",
+            "settled_outer",
+            "settled_lean",
+            "shift_outer",
+        ):
+            object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
+        if not self.speeds or any(v < 0 for v in self.speeds):
+            raise ConfigError(f"catch speeds must be >= 0, got {self.speeds}")
+        for scales in (self.scales, self.settled_scales):
+            if not scales or any(s < 1 for s in scales):
+                raise ConfigError(f"catch scales must be >= 1 (S ⊇ G), got {scales}")
+        if self.headings < 1 or self.grid_divisions < 1 or self.boundary_points < 1:
+            raise ConfigError("catch headings, grid_divisions and boundary_points must be >= 1")
+        for outer in (self.pushed_outer, self.settled_outer):
+            if len(outer) != 3 or not 0 < outer[1] <= outer[0] or not outer[2] > 0:
+                raise ConfigError(
+                    f"catch outer extents must be (along, across <= along, velocity) > 0, "
+                    f"got {outer}"
+                )
+        if not self.shift_scale >= 1:
+            raise ConfigError(f"shift_scale must be >= 1 (S ⊇ G), got {self.shift_scale}")
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> CatchOptions:
+        """Inverse of :func:`dataclasses.asdict` (lists become tuples)."""
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in data.items()})  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
 class PushLeanTable:
     """Lean and lean rate a push leaves, tabulated by the ball speed it causes.
 
@@ -654,6 +773,9 @@ class VerificationOptions:
     braking : BrakingOptions or None
         The palette's braking maneuvers (None, the default: none; see
         :mod:`gracenav.braking` for what they add and what they cost).
+    catch : CatchOptions or None
+        The palette's catches and shifts, placed at the robot's own state
+        (:mod:`gracenav.capture`); None: none.
     """
 
     boundary_points: int = 64
@@ -667,12 +789,15 @@ class VerificationOptions:
     scale_ladder: tuple[float, ...] = (3.0, 4.0, 6.0, 8.0)
     regulator: RegulatorOptions | None = field(default_factory=RegulatorOptions)
     braking: BrakingOptions | None = None
+    catch: CatchOptions | None = field(default_factory=CatchOptions)
 
     def __post_init__(self) -> None:
         if isinstance(self.regulator, dict):
             object.__setattr__(self, "regulator", RegulatorOptions.from_dict(self.regulator))
         if isinstance(self.braking, dict):
             object.__setattr__(self, "braking", BrakingOptions.from_dict(self.braking))
+        if isinstance(self.catch, dict):
+            object.__setattr__(self, "catch", CatchOptions.from_dict(self.catch))
         ladder = tuple(float(v) for v in self.scale_ladder)
         object.__setattr__(self, "scale_ladder", ladder)
         if any(not b > a for a, b in zip((self.max_scale, *ladder), ladder, strict=False)):
@@ -807,6 +932,10 @@ class MotionPolicy:
         controller starts it only when no other policy's S contains the state.
     start_correlation : float or None
         Correlation of S when it differs from the other domains' (capture regulators).
+    outer_cross : float or None
+        For a capture policy whose reference starts moving: the position extent (m) of
+        D' across the start velocity; the outer factor then gives the extent along it
+        (an ellipse aligned with the motion, rotating with the placement). None: round.
     """
 
     primitive: SampledPrimitive
@@ -819,6 +948,7 @@ class MotionPolicy:
     label: str = ""
     capture: bool = False
     start_correlation: float | None = None
+    outer_cross: float | None = None
 
     @property
     def name(self) -> str:
@@ -875,13 +1005,25 @@ class MotionPolicy:
         rp, rv = self.radii(t)
         return np.asarray(rp * cp, dtype=float), np.asarray(rv * cv, dtype=float)
 
+    def _outer_shape(self, position_extent: float, velocity_extent: float) -> FloatArray:
+        """Shape matrix of D' with these extents (along the motion, for ``outer_cross``)."""
+        corr = 0.0 if self.capture else self.correlation
+        shape = correlated_shape(position_extent, velocity_extent, corr)
+        v0 = self.primitive.start_velocity
+        speed = float(np.hypot(*v0))
+        if self.outer_cross is not None and speed > 0:
+            u = np.asarray(v0, dtype=float) / speed
+            w = np.array([-u[1], u[0]])
+            shape[:2, :2] = np.outer(u, u) / position_extent**2 + np.outer(w, w) / (
+                self.outer_cross**2
+            )
+        return shape
+
     def outer_domain(self, t: float) -> EllipsoidalDomain:
         """D'(t) ⊃ D(t), in the policy's own frame."""
         rp, rv = self.outer_extents(t)
-        corr = 0.0 if self.capture else self.correlation
         return EllipsoidalDomain(
-            self.primitive.position_state(t),
-            correlated_shape(float(rp), float(rv), corr),
+            self.primitive.position_state(t), self._outer_shape(float(rp), float(rv))
         )
 
     @property
@@ -900,8 +1042,7 @@ class MotionPolicy:
         t = np.arange(self.primitive.num_ticks + 1) * self.primitive.dt
         rp, rv = self.outer_extents(t)
         # All D'(t) are scaled copies of one shape: P(t) = P(0) · (ρ(0)/ρ(t))².
-        corr = 0.0 if self.capture else self.correlation
-        base = correlated_shape(float(rp[0]), float(rv[0]), corr)
+        base = self._outer_shape(float(rp[0]), float(rv[0]))
         shapes = base[None] * ((rp[0] / rp) ** 2)[:, None, None]
         return np.ascontiguousarray(self.primitive.position[:, :4]), shapes
 
@@ -987,16 +1128,17 @@ def verify_policy(
     return report
 
 
-def _worse(a: VerificationReport, b: VerificationReport) -> VerificationReport:
-    """The combined report of two verifications (passes only if both pass)."""
+def combined_report(*reports: VerificationReport) -> VerificationReport:
+    """The combined report of several verifications of one policy (passes only if all
+    pass; worst values, total runs)."""
     return VerificationReport(
-        passed=a.passed and b.passed,
-        runs=a.runs + b.runs,
-        max_outer_value=max(a.max_outer_value, b.max_outer_value),
-        max_goal_value=max(a.max_goal_value, b.max_goal_value),
-        max_lean=max(a.max_lean, b.max_lean),
-        max_torque=max(a.max_torque, b.max_torque),
-        saturated_runs=a.saturated_runs + b.saturated_runs,
+        passed=all(r.passed for r in reports),
+        runs=sum(r.runs for r in reports),
+        max_outer_value=max(r.max_outer_value for r in reports),
+        max_goal_value=max(r.max_goal_value for r in reports),
+        max_lean=max(r.max_lean for r in reports),
+        max_torque=max(r.max_torque for r in reports),
+        saturated_runs=sum(r.saturated_runs for r in reports),
     )
 
 
@@ -1025,7 +1167,7 @@ def verify_placements(
         )
         for k in (0, 1)
     ]
-    return _worse(*reports)
+    return combined_report(*reports)
 
 
 def regulator_label(name: str, position_extent: float) -> str:
@@ -1201,6 +1343,19 @@ def rotate_pairs(a: ArrayLike, k: int) -> FloatArray:
     k %= 4
     c = (1.0, 0.0, -1.0, 0.0)[k]
     s = (0.0, 1.0, 0.0, -1.0)[k]
+    rot = np.array([[c, -s], [s, c]])
+    pairs = arr.reshape(*arr.shape[:-1], arr.shape[-1] // 2, 2)
+    out: FloatArray = (pairs @ rot.T).reshape(arr.shape)
+    return out
+
+
+def rotate_pairs_by(a: ArrayLike, angle: float) -> FloatArray:
+    """Rotate every consecutive (x, y) pair of the last axis of ``a`` by ``angle`` (rad),
+    counter-clockwise: :func:`rotate_pairs` for any angle. For model states the lean
+    pair is rotated like a vector, which is exact for the position state and first
+    order in the lean (see :meth:`SampledPrimitive.rotated`)."""
+    arr = np.asarray(a, dtype=np.float64)
+    c, s = math.cos(angle), math.sin(angle)
     rot = np.array([[c, -s], [s, c]])
     pairs = arr.reshape(*arr.shape[:-1], arr.shape[-1] // 2, 2)
     out: FloatArray = (pairs @ rot.T).reshape(arr.shape)

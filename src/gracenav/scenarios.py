@@ -10,7 +10,8 @@ A scenario file (YAML) has these keys (SI units; positions in m, velocities in m
     robot: {footprint_radius: 0.2, sensing_range: 3.0}  # optional (m)
     planner: {cost: time, max_halvings: 1}  # optional; cost: time | distance
     # planner: {kind: decoupled}            # the plan-then-track baseline (gracenav.baseline)
-    # planner: {resume_from_balancing: false, seed: 0}  # the paper's recovery; library seed
+    # planner: {resume_from_balancing: false, capture: true, seed: 0}  # the paper's
+    #   recovery; catches placed at the state (gracenav.capture); library seed
     task:                                   # required
       kind: point_to_point                  # goal and starts: [x, y, xdot, ydot]
       goal: [2, 2, 0, 0]
@@ -116,6 +117,9 @@ class Scenario:
     resume_from_balancing : bool
         See :class:`~gracenav.execution.ExecutionOptions`; False is the paper's
         behaviour (no unverified balancing-mode fallback).
+    capture : bool
+        ``planner.capture``: place a verified catch at a state no library policy
+        contains (:mod:`gracenav.capture`; default true).
     library_seed : int
         Seed of the library's coverage samples (``planner.seed``), apart from the
         simulation's seed, so that trials with different noise share one library.
@@ -143,6 +147,7 @@ class Scenario:
     plant_factors: tuple[tuple[str, float], ...] = ()
     planner: Literal["gracenav", "decoupled"] = "gracenav"
     resume_from_balancing: bool = True
+    capture: bool = True
     library_seed: int = 0
     moving_obstacles: tuple[MovingObstacle, ...] = ()
     sensing_range: float = 3.0
@@ -245,11 +250,14 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         "sensing_range", ObstacleSensing().range, positive=True, maximum=100.0, unit="m"
     )
     planner = top.sub("planner", {})
-    planner.check_keys({"kind", "cost", "max_halvings", "resume_from_balancing", "seed"})
+    planner.check_keys(
+        {"kind", "cost", "max_halvings", "resume_from_balancing", "capture", "seed"}
+    )
     planner_kind = planner.choice("kind", PLANNERS, "gracenav")
     cost = planner.choice("cost", ("time", "distance"), "time")
     halvings = planner.integer("max_halvings", 1, maximum=20)
     resume = planner.boolean("resume_from_balancing", True)
+    capture = planner.boolean("capture", True)
     library_seed = planner.integer("seed", 0, maximum=2**32 - 1)
     sim = top.sub("simulation", {})
     sim.check_keys({"plant", "seed", "position_noise_std", "max_time", "plant_params"})
@@ -339,6 +347,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         plant_factors=plant_factors,
         planner=planner_kind,  # type: ignore[arg-type]
         resume_from_balancing=resume,
+        capture=capture,
         library_seed=library_seed,
     )
 
@@ -512,7 +521,8 @@ class RunSummary:
     ``stop_reason`` is what the hybrid controller reported (:class:`TaskStatus`
     values); :attr:`outcome` is the verdict: ``contact`` for a run with contact,
     ``stop_reason`` otherwise. ``verified_recoveries`` counts switches after a domain
-    exit straight into a policy whose start domain contains the state;
+    exit straight into a policy whose start domain contains the state, ``captures``
+    those of them into a catch placed at the state (:mod:`gracenav.capture`);
     ``balancing_s`` is the time spent in balancing mode, the unverified last resort.
     With moving obstacles, the clearance and contact are measured against their true
     positions too; ``replans`` counts the tree repairs (median and largest wall time in
@@ -539,6 +549,7 @@ class RunSummary:
     contact: bool = False
     contact_time_s: float | None = None
     verified_recoveries: int = 0
+    captures: int = 0
     balancing_s: float = 0.0
     replans: int = 0
     replan_ms_median: float = 0.0
@@ -793,6 +804,7 @@ def _execution_options(scenario: Scenario) -> Any:
             position_noise_std=scenario.position_noise_std, seed=scenario.seed
         ),
         resume_from_balancing=scenario.resume_from_balancing,
+        capture=scenario.capture,
         sensing=ObstacleSensing(range=scenario.sensing_range),
     )
 
@@ -877,6 +889,7 @@ def _summarise(
         contact=contact,
         contact_time_s=float(ep.time[touching[0]]) if contact else None,
         verified_recoveries=ep.verified_recoveries,
+        captures=sum(1 for e in ep.events if e.reason.value == "capture"),
         balancing_s=ep.balancing_time,
         replans=len(ep.replans),
         replan_ms_median=float(np.median(latencies)) if latencies else 0.0,

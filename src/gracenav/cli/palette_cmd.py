@@ -90,7 +90,7 @@ def _table(palette: Any) -> str:
             "max τ (N m)",
         )
     ]
-    for pol in palette.policies:
+    for pol in (*palette.policies, *palette.catches, *palette.shifts):
         rep = pol.report
         rows.append(
             (
@@ -180,11 +180,25 @@ def run_verify(args: argparse.Namespace) -> int:
             rep = verify_placements(pol, opts, params=plant)
         if not rep.passed:
             failed.append(pol.name)
+    placed = (*pal.catches, *pal.shifts)
+    if placed:
+        from gracenav.capture import reverify
+        from gracenav.policies import RegulatorOptions, push_lean_table
+
+        pushes = opts.regulator or RegulatorOptions()
+        table = push_lean_table(pal.gains, pushes.push_impulses, pushes.push_times, params=plant)
+        for pol in placed:
+            if not reverify(pol, opts, table, params=plant).passed:
+                failed.append(pol.name)
     dt = time.perf_counter() - t0
+    total = len(pal) + len(placed)
     if failed:
-        print(f"{len(failed)} of {len(pal)} policies FAILED verification: {', '.join(failed)}")
+        print(f"{len(failed)} of {total} policies FAILED verification: {', '.join(failed)}")
         return 1
-    print(f"all {len(pal)} policies verified at 0° and 90° in {dt:.1f} s")
+    print(
+        f"all {len(pal)} policies verified at 0° and 90°, and {len(pal.catches)} catches and "
+        f"{len(pal.shifts)} shifts as built, in {dt:.1f} s"
+    )
     if args.switches:
         jumps = switch_torque_jumps(pal.policies)
         worst = max(jumps, key=lambda j: j.jump)

@@ -1,0 +1,773 @@
+"""Capture at the robot's own state: catches and shifts.
+
+Sequential composition promises a verified policy for every state a push can leave
+(paper Sec. IV-C), but policies instantiated on a lattice, at four orientations and a
+few speeds, leave most moving states outside every start domain S. A *catch* is
+placed where the robot is instead: a braking maneuver from a speed of
+:attr:`~gracenav.policies.CatchOptions.speeds` (0 is a rest hold) along +x to rest,
+then a rest tail, rotated to the robot's heading and moved so that it ends on a fine
+grid (spacing d / ``grid_divisions``, anchored where the library's lattice is). Its
+start domain S is small (the palette's shape at 1–1.5 G) and only has to hold the
+speed difference to the nearest catch and a grid cell of placement; its outer
+domain D' is a tube of fixed extents around the braking path, much narrower than a
+capture regulator's disc. A *shift* (a rest-to-rest maneuver of up to
+``shift_radius`` between grid points, its S ⊇ G) then brings the robot onto a
+lattice rest trim of the library, whose S ⊇ G: catch ⪰ shift ⪰ rest trim.
+
+Catches are verified like every palette policy (:func:`gracenav.policies.verify_policy`:
+boundary states of S, D' at every tick, G at the end, lean and torque limits, no
+saturation) at ``headings`` placements over [0°, 180°), in two lean classes:
+
+* ``pushed``: from the plan lean and from the lean and lean rate a push leaves 0,
+  0.1, 0.2 and 0.3 s after it (the capture regulators' push table), with the wider
+  D' this needs; usable whatever the measured lean;
+* ``settled``: from the plan lean and the corners of a small band around it
+  (:attr:`~gracenav.policies.CatchOptions.settled_lean`), with a narrow D'; usable
+  only when the measured lean is within that band.
+
+Shifts are verified at the 0° and 90° placements from the plan lean and the band.
+:class:`Capture` plans, for one library, the catch, shift and rest trim that take a
+state to the goal at least cost, checking each swept D' grown by the footprint
+against the map as instantiation does.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from functools import cached_property
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from gracenav.control import ControllerGains
+from gracenav.domains import EllipsoidalDomain
+from gracenav.policies import (
+    CatchOptions,
+    DomainRadii,
+    DomainShape,
+    MotionPolicy,
+    PrimitiveKind,
+    PushLeanTable,
+    SampledPrimitive,
+    VerificationOptions,
+    VerificationReport,
+    combined_report,
+    rotate_pairs_by,
+    verify_policy,
+)
+from gracenav.simulate import DEFAULT_CONTROL_RATE, Reference
+
+if TYPE_CHECKING:
+    from gracenav.library import PolicyLibrary
+    from gracenav.params import BallbotParams
+
+__all__ = [
+    "CATCH_NAME",
+    "PUSHED",
+    "SETTLED",
+    "SHIFT_NAME",
+    "Capture",
+    "CapturePlan",
+    "PlacedPolicy",
+    "capture_for",
+    "catch_label",
+    "catch_policies",
+    "catch_primitive",
+    "reverify",
+    "settled_leans",
+    "shift_cells",
+    "shift_policies",
+    "shift_primitive",
+]
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+CATCH_NAME = "catch"
+SHIFT_NAME = "shift"
+PUSHED = "pushed"
+SETTLED = "settled"
+
+#: Planned durations are whole multiples of this (s): 8 control ticks.
+_DURATION_STEP = 1.0 / 128.0
+#: A catch is tried for states whose speed is within this of its own (m/s).
+_SPEED_WINDOW = 0.16
+
+
+def catch_label(speed: float, lean_class: str, scale: float) -> str:
+    """Name of a catch, e.g. ``catch_0.5[pushed,S=1.5G]``."""
+    return f"{CATCH_NAME}_{speed:g}[{lean_class},S={scale:g}G]"
+
+
+def _lean_class(policy: MotionPolicy) -> str:
+    return SETTLED if f"[{SETTLED}," in policy.label else PUSHED
+
+
+# --------------------------------------------------------------------------------------
+# Primitives
+# --------------------------------------------------------------------------------------
+
+
+def _rest_primitive(name: str, duration: float) -> SampledPrimitive:
+    dt = 1.0 / DEFAULT_CONTROL_RATE
+    n = round(duration / dt)
+    zero = np.zeros(2)
+    return SampledPrimitive(
+        name=name,
+        kind=PrimitiveKind.MANEUVER,
+        duration=n * dt,
+        dt=dt,
+        displacement=zero.copy(),
+        start_velocity=zero.copy(),
+        end_velocity=zero.copy(),
+        states=np.zeros((n + 1, 8)),
+        accelerations=np.zeros((n + 1, 4)),
+        inputs=np.zeros((n + 1, 2)),
+        position=np.zeros((n + 1, 6)),
+    )
+
+
+def _plan_to_rest(
+    offset: FloatArray,
+    velocity: FloatArray,
+    duration_of: Callable[[float], tuple[float, FloatArray]],
+    options: CatchOptions,
+    gains: ControllerGains,
+    name: str,
+) -> SampledPrimitive | None:
+    """The shortest duration T (on a 1/16 s then 1/128 s grid) whose nonic from
+    (0, velocity) to (offset(T), 0) the shape planner makes feasible within the lean
+    and torque limits; ``duration_of(T)`` gives (T, end offset)."""
+    from gracenav.braking import sampled_with_rest_tail
+    from gracenav.shape_planner import NonicReference, plan_shape_trajectory
+
+    params = gains.params
+
+    def feasible(t: float) -> object | None:
+        dur, end = duration_of(t)
+        ref = NonicReference.between(dur, np.zeros(2), velocity, end, np.zeros(2))
+        # Too short a T diverges; the result is then rejected, not a user's concern.
+        with np.errstate(over="ignore", invalid="ignore"):
+            res = plan_shape_trajectory(ref, params, model="3d")
+        ok = (
+            res.converged
+            and res.peak_lean <= options.max_lean
+            and res.peak_torque <= params.torque_limit
+        )
+        return res if ok else None
+
+    coarse = 1.0 / 16.0
+    t = options.min_duration
+    while t <= options.max_duration + 1e-9:
+        if feasible(t) is not None:
+            break
+        t += coarse
+    else:
+        return None
+    lo, hi = max(options.min_duration, t - coarse), t  # feasible at hi
+    while hi - lo > _DURATION_STEP + 1e-12:
+        mid = math.ceil((lo + hi) / 2 / _DURATION_STEP - 1e-9) * _DURATION_STEP
+        if mid >= hi:
+            break
+        if feasible(mid) is not None:
+            hi = mid
+        else:
+            lo = mid
+    res = feasible(hi)
+    assert res is not None
+    dur, _ = duration_of(hi)
+    return sampled_with_rest_tail(
+        res,  # type: ignore[arg-type]
+        dur,
+        options.tail,
+        name=name,
+        start_velocity=velocity,
+    )
+
+
+def catch_primitive(
+    speed: float, options: CatchOptions, gains: ControllerGains, *, lean_class: str = PUSHED
+) -> SampledPrimitive | None:
+    """The catch from ``speed`` (m/s) along +x: the C⁴ smooth-step deceleration (the
+    nonic from (0, v) to (v T/2, 0)) of the shortest T feasible with the class's lean
+    (``max_lean`` or ``settled_max_lean``), then the rest tail; at speed 0 a rest hold
+    of the tail's duration. None if no T <= ``max_duration`` is feasible."""
+    name = f"{CATCH_NAME}_{speed:g}_{lean_class}"
+    if speed == 0.0:
+        return _rest_primitive(name, options.tail)
+    v = np.array([speed, 0.0])
+    lean = options.max_lean if lean_class == PUSHED else options.settled_max_lean
+    return _plan_to_rest(
+        np.zeros(2),
+        v,
+        lambda t: (t, np.array([speed * t / 2.0, 0.0])),
+        replace(options, max_lean=lean),
+        gains,
+        name,
+    )
+
+
+def shift_primitive(
+    offset: ArrayLike, options: CatchOptions, gains: ControllerGains
+) -> SampledPrimitive | None:
+    """The rest-to-rest shift by ``offset`` (m) of the shortest feasible duration (at
+    least 1 s), then the rest tail."""
+    off = np.asarray(offset, dtype=float)
+    quick = replace(options, min_duration=max(1.0, options.min_duration))
+    return _plan_to_rest(
+        off,
+        np.zeros(2),
+        lambda t: (t, off),
+        quick,
+        gains,
+        f"{SHIFT_NAME}_{off[0]:.4g}_{off[1]:.4g}",
+    )
+
+
+def shift_cells(options: CatchOptions, d: float) -> list[tuple[int, int]]:
+    """Grid offsets (i, j) of the shifts to build: i >= 1, j >= 0 (one quadrant; the
+    others by rotation), within ``shift_radius``."""
+    grid = d / options.grid_divisions
+    n = int(options.shift_radius / grid)
+    return [
+        (i, j)
+        for i in range(1, n + 1)
+        for j in range(0, n + 1)
+        if math.hypot(i, j) * grid <= options.shift_radius + 1e-12
+    ]
+
+
+# --------------------------------------------------------------------------------------
+# Verification
+# --------------------------------------------------------------------------------------
+
+
+def settled_leans(options: CatchOptions) -> PushLeanTable:
+    """The four corners (±lean, ±lean rate) of the settled band, along the motion, as a
+    table for :func:`gracenav.policies.verify_policy` (the same at every speed)."""
+    lean, rate = options.settled_lean
+    return PushLeanTable(
+        times=np.arange(4, dtype=float),
+        speed=np.full((1, 4), 1e-9),
+        lean=np.array([[lean, lean, -lean, -lean]]),
+        lean_rate=np.array([[rate, -rate, rate, -rate]]),
+    )
+
+
+def verify_headings(
+    policy: MotionPolicy,
+    options: VerificationOptions,
+    headings: int,
+    *,
+    push_leans: PushLeanTable | None,
+    boundary_points: int,
+) -> VerificationReport:
+    """Verify ``policy`` placed at ``headings`` evenly spaced headings in [0°, 180°)."""
+    return combined_report(
+        *(
+            verify_policy(
+                replace(policy, primitive=policy.primitive.rotated_by(math.pi * k / headings)),
+                options,
+                push_leans=push_leans,
+                boundary_points=boundary_points,
+            )
+            for k in range(headings)
+        )
+    )
+
+
+def catch_policies(
+    speed: float,
+    gains: ControllerGains,
+    options: VerificationOptions,
+    shape: DomainShape,
+    push_leans: PushLeanTable,
+) -> tuple[MotionPolicy, ...]:
+    """The catches from ``speed``: for each lean class, the largest size of
+    ``options.catch.scales`` that verifies, preceded by the larger sizes that failed
+    (reports attached). Empty if the braking cannot be planned."""
+    opts = options.catch
+    assert opts is not None
+    goal = shape.radii(options.goal_position_extent)
+    out: list[MotionPolicy] = []
+    for cls, (along, across, fv), leans, scales in (
+        (PUSHED, opts.pushed_outer, push_leans, opts.scales),
+        (SETTLED, opts.settled_outer, settled_leans(opts), opts.settled_scales),
+    ):
+        prim = catch_primitive(speed, opts, gains, lean_class=cls)
+        if prim is None:
+            continue
+        for scale in sorted(scales, reverse=True):
+            start = DomainRadii(goal.position * scale, goal.velocity * scale)
+            pol = MotionPolicy(
+                prim,
+                gains,
+                start,
+                goal,
+                (max(1.1, along / start.position), max(3.0, fv / start.velocity)),
+                shape.correlation,
+                label=catch_label(speed, cls, scale),
+                capture=True,
+                outer_cross=across if speed > 0 else None,
+            )
+            report = verify_headings(
+                pol, options, opts.headings, push_leans=leans, boundary_points=opts.boundary_points
+            )
+            out.append(replace(pol, report=report))
+            if report.passed:
+                break
+    return tuple(out)
+
+
+def shift_policies(
+    cell: tuple[int, int],
+    d: float,
+    gains: ControllerGains,
+    options: VerificationOptions,
+    shape: DomainShape,
+) -> tuple[MotionPolicy, ...]:
+    """The shift by ``cell`` grid steps, verified at the 0° and 90° placements from the
+    plan lean and the settled band (empty if it cannot be planned)."""
+    from gracenav.policies import verify_placements
+
+    opts = options.catch
+    assert opts is not None
+    grid = d / opts.grid_divisions
+    prim = shift_primitive(np.asarray(cell, dtype=float) * grid, opts, gains)
+    if prim is None:
+        return ()
+    prim = replace(prim, name=f"{SHIFT_NAME}_{cell[0]}_{cell[1]}")
+    goal = shape.radii(options.goal_position_extent)
+    start = DomainRadii(goal.position * opts.shift_scale, goal.velocity * opts.shift_scale)
+    fp, fv = opts.shift_outer
+    pol = MotionPolicy(
+        prim,
+        gains,
+        start,
+        goal,
+        (max(1.1, fp / start.position), max(3.0, fv / start.velocity)),
+        shape.correlation,
+        capture=True,
+    )
+    report = verify_placements(
+        pol, options, push_leans=settled_leans(opts), boundary_points=opts.boundary_points
+    )
+    return (replace(pol, report=report),)
+
+
+def reverify(
+    policy: MotionPolicy,
+    options: VerificationOptions,
+    push_leans: PushLeanTable,
+    *,
+    params: BallbotParams | None = None,
+) -> VerificationReport:
+    """Verify a catch or shift of the palette as it was built (placements, lean
+    variants of its class, boundary points), on ``params`` (default: nominal)."""
+    from gracenav.policies import verify_placements
+
+    opts = options.catch
+    assert opts is not None
+    if policy.primitive.name.startswith(SHIFT_NAME):
+        return verify_placements(
+            policy,
+            options,
+            params=params,
+            push_leans=settled_leans(opts),
+            boundary_points=opts.boundary_points,
+        )
+    leans = push_leans if _lean_class(policy) == PUSHED else settled_leans(opts)
+    return combined_report(
+        *(
+            verify_policy(
+                replace(policy, primitive=policy.primitive.rotated_by(math.pi * k / opts.headings)),
+                options,
+                params=params,
+                push_leans=leans,
+                boundary_points=opts.boundary_points,
+            )
+            for k in range(opts.headings)
+        )
+    )
+
+
+# --------------------------------------------------------------------------------------
+# Placement
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class PlacedPolicy:
+    """A palette policy placed at any heading and point (not on the lattice).
+
+    Attributes
+    ----------
+    policy : MotionPolicy
+        The palette's catch or shift, in its own frame.
+    angle : float
+        Heading (rad): the policy is rotated by it about its start.
+    start_xy : ndarray, shape (2,)
+        Where the reference starts (m).
+    """
+
+    policy: MotionPolicy
+    angle: float
+    start_xy: FloatArray
+
+    @cached_property
+    def primitive(self) -> SampledPrimitive:
+        """The primitive rotated to ``angle`` (its own start at the origin)."""
+        return self.policy.primitive.rotated_by(self.angle)
+
+    @property
+    def name(self) -> str:
+        """E.g. ``catch_0.5[pushed,S=1.5G]@37°(1.2, 0.8)``."""
+        x, y = self.start_xy
+        return f"{self.policy.name}@{math.degrees(self.angle):.0f}°({x:.3g}, {y:.3g})"
+
+    @property
+    def duration(self) -> float:
+        """t_f (s)."""
+        return self.policy.duration
+
+    @property
+    def end_xy(self) -> FloatArray:
+        """Where the reference ends (m)."""
+        out: FloatArray = self.start_xy + self.primitive.displacement
+        return out
+
+    def _world(self, local: EllipsoidalDomain) -> EllipsoidalDomain:
+        c = rotate_pairs_by(local.center, self.angle)
+        c[:2] += self.start_xy
+        # S and G (the palette's shape) are invariant under rotations of the plane.
+        return EllipsoidalDomain(c, local.shape_matrix)
+
+    @property
+    def start_domain(self) -> EllipsoidalDomain:
+        """S in the world frame."""
+        return self._world(self.policy.start_domain)
+
+    @property
+    def goal_domain(self) -> EllipsoidalDomain:
+        """G in the world frame."""
+        return self._world(self.policy.goal_domain)
+
+    def reference(self, radius: float) -> tuple[Reference, FloatArray]:
+        """World-frame reference (states, feed-forward torques) and reference x, y, ẋ,
+        ẏ, ẍ, ÿ at the ticks (T + 1, 6), for a ball of ``radius`` (m)."""
+        prim = self.primitive
+        states = prim.states.copy()
+        states[:, 0:2] += self.start_xy / radius
+        position = prim.position.copy()
+        position[:, 0:2] += self.start_xy
+        return Reference(states, prim.inputs, prim.dt), position
+
+    def outer_monitor(self) -> tuple[FloatArray, FloatArray]:
+        """D'(t) at every tick in the world frame: centres (T+1, 4), shapes (T+1, 4, 4)."""
+        # D' across the motion (``outer_cross``) turns with the placement.
+        rotated = replace(self.policy, primitive=self.primitive)
+        centres, shapes = rotated.outer_monitor()
+        centres = centres.copy()
+        centres[:, :2] += self.start_xy
+        return np.ascontiguousarray(centres), shapes
+
+
+@dataclass(frozen=True)
+class CapturePlan:
+    """A verified way from a state back onto the library.
+
+    Attributes
+    ----------
+    catch : PlacedPolicy
+        Placed at the state: its S contains it.
+    shift : PlacedPolicy or None
+        From the catch's end onto ``rest_row``'s point (None if the catch ends there);
+        its S ⊇ the catch's G.
+    rest_row : int
+        The library's rest trim the robot is left on (its S ⊇ the last G).
+    cost : float
+        Duration of the catch and the shift plus the rest trim's cost-to-go (s); 0 for
+        the cost-to-go when planned without a tree.
+    """
+
+    catch: PlacedPolicy
+    shift: PlacedPolicy | None
+    rest_row: int
+    cost: float
+
+    @property
+    def policies(self) -> tuple[PlacedPolicy, ...]:
+        """The placed policies in the order they run."""
+        return (self.catch,) if self.shift is None else (self.catch, self.shift)
+
+
+@dataclass(frozen=True)
+class _Member:
+    policy: MotionPolicy
+    speed: float
+    stop: float
+    lean_class: str
+    shape: FloatArray  # S's shape matrix, (4, 4)
+    path: FloatArray  # reference samples along +x relative to the start, (K, 2)
+    reach: FloatArray  # D' radius plus half the gap to the next sample, (K,)
+
+
+def _sweep_of(policy: MotionPolicy, step: float) -> tuple[FloatArray, FloatArray]:
+    """Reference samples (K, 2) at most ``step`` of arc apart and the XY radius of D'
+    there plus half the arc to a neighbouring sample (K,): the discs whose union
+    holds the swept D' (as instantiation checks it)."""
+    from gracenav.library import _sweep_samples
+
+    pos, cum, sel = _sweep_samples(policy, step)
+    outer, _ = policy.outer_extents(sel * policy.primitive.dt)
+    along = float(np.max(outer))
+    if policy.outer_cross is not None and np.any(policy.primitive.start_velocity):
+        # An ellipse (along a, across b <= a) lies in the discs of radius b centred on
+        # its major axis within a - b of its centre: the reference's straight path
+        # extended by a - b at both ends, with radius b.
+        ext = along - policy.outer_cross
+        u = policy.primitive.start_velocity / np.hypot(*policy.primitive.start_velocity)
+        k = np.arange(1, int(np.ceil(ext / step)) + 1)
+        grow = np.minimum(k * step, ext)
+        pts = np.concatenate(
+            [(-grow[::-1])[:, None] * u, pos[sel], pos[sel][-1] + grow[:, None] * u]
+        )
+        cum_all = np.concatenate([-grow[::-1], cum[sel], cum[sel][-1] + grow])
+        outer = np.full(pts.shape[0], policy.outer_cross)
+    else:
+        pts, cum_all = pos[sel], cum[sel]
+    reach = np.asarray(outer, dtype=float).copy()
+    if pts.shape[0] > 1:
+        half = 0.5 * np.diff(cum_all)
+        seg = np.maximum(outer[:-1], outer[1:]) + half
+        reach[:-1] = np.maximum(reach[:-1], seg)
+        reach[1:] = np.maximum(reach[1:], seg)
+    return np.ascontiguousarray(pts), reach
+
+
+def capture_for(library: PolicyLibrary) -> Capture:
+    """The library's :class:`Capture` (built once and kept with the library)."""
+    got = library._cache.get("capture")
+    if got is None:
+        got = library._cache["capture"] = Capture(library)
+    assert isinstance(got, Capture)
+    return got
+
+
+class Capture:
+    """Plans captures (catch, shift, rest trim) on one library.
+
+    Parameters
+    ----------
+    library : PolicyLibrary
+        Its palette's catches and shifts are placed on its map, with its footprint;
+        its rest trims are where captures end.
+    """
+
+    def __init__(self, library: PolicyLibrary) -> None:
+        self.library = library
+        palette = library.palette
+        opts = palette.options.catch
+        self.options = opts
+        self.grid = palette.d / (opts.grid_divisions if opts is not None else 1)
+        self.origin = np.asarray(library.origin, dtype=float)
+        step = float(library.sweep_step)
+        members = []
+        for pol in palette.catches:
+            path, reach = _sweep_of(pol, step)
+            members.append(
+                _Member(
+                    pol,
+                    float(pol.primitive.start_velocity[0]),
+                    float(pol.primitive.displacement[0]),
+                    _lean_class(pol),
+                    pol.start_domain.shape_matrix,
+                    path,
+                    reach,
+                )
+            )
+        self._members = members
+        # Shifts at the four quarter turns, their swept D' samples padded to one length.
+        shifts: list[tuple[MotionPolicy, float]] = []
+        paths: list[FloatArray] = []
+        reaches: list[FloatArray] = []
+        for pol in palette.shifts:
+            path, reach = _sweep_of(pol, step)
+            for k in range(4):
+                angle = 0.5 * math.pi * k
+                c, s = math.cos(angle), math.sin(angle)
+                shifts.append((pol, angle))
+                paths.append(path @ np.array([[c, -s], [s, c]]).T)
+                reaches.append(reach)
+        self._shifts = shifts
+        width = max((a.shape[0] for a in paths), default=1)
+        self._shift_path = np.zeros((len(paths), width, 2))
+        self._shift_reach = np.zeros((len(paths), width))
+        for k, (a, b) in enumerate(zip(paths, reaches, strict=True)):
+            self._shift_path[k, : a.shape[0]] = a
+            self._shift_path[k, a.shape[0] :] = a[-1]
+            self._shift_reach[k, : b.size] = b
+            self._shift_reach[k, b.size :] = b[-1]
+        self._shift_cells = np.array(
+            [np.round(a[-1] / self.grid) for a in paths], dtype=np.int64
+        ).reshape(-1, 2)
+        self._shift_time = np.array([p.duration for p, _ in shifts], dtype=float)
+        rest = library.trim_indices(PrimitiveKind.REST)
+        keys = np.round((library.start_xy[rest] - self.origin) / self.grid).astype(np.int64)
+        self._rest: dict[tuple[int, int], NDArray[np.int64]] = {}
+        for key in np.unique(keys, axis=0):
+            rows = rest[np.all(keys == key, axis=1)]
+            self._rest[(int(key[0]), int(key[1]))] = rows
+        self._handover: dict[tuple[int, int], list[tuple[float, int, int]]] = {}
+
+    @property
+    def available(self) -> bool:
+        """Whether the palette has catches to place."""
+        return bool(self._members)
+
+    def _clear(self, points: FloatArray, reach: FloatArray) -> BoolArray:
+        world = self.library.world_map
+        flat = points.reshape(-1, 2)
+        ok = world.is_free(flat) & (
+            world.clearance(flat)
+            >= self.library.footprint_radius + np.broadcast_to(reach, points.shape[:-1]).reshape(-1)
+        )
+        return np.asarray(ok.reshape(points.shape[:-1]), dtype=bool)
+
+    def _handovers(self, cell: tuple[int, int]) -> list[tuple[float, int, int]]:
+        """(shift duration, shift index or −1, rest row) of every way from grid point
+        ``cell`` onto a rest trim: the rest trims at the point itself, then those a
+        shift with a clear swept D' reaches."""
+        got = self._handover.get(cell)
+        if got is not None:
+            return got
+        out: list[tuple[float, int, int]] = []
+        for row in self._rest.get(cell, ()):
+            out.append((0.0, -1, int(row)))
+        q = self.origin + np.asarray(cell, dtype=float) * self.grid
+        ends = self._shift_cells + np.asarray(cell, dtype=np.int64)
+        found = [self._rest.get((int(i), int(j))) for i, j in ends]
+        ks = np.array([k for k, rows in enumerate(found) if rows is not None], dtype=np.int64)
+        if ks.size:
+            clear = np.all(self._clear(q + self._shift_path[ks], self._shift_reach[ks]), axis=1)
+            for k in ks[clear]:
+                rows = found[int(k)]
+                assert rows is not None
+                out.extend((float(self._shift_time[k]), int(k), int(row)) for row in rows)
+        self._handover[cell] = out
+        return out
+
+    def _candidates(
+        self, state: FloatArray, classes: tuple[str, ...]
+    ) -> list[tuple[int, float, _Member, float, FloatArray, tuple[int, int]]]:
+        """(class rank, S value, member, heading, start, end cell) of every placement of
+        a catch whose S contains ``state``, the catch ending on a grid point near its
+        natural stop."""
+        p, v = state[:2], state[2:4]
+        speed = float(np.hypot(*v))
+        u = v / speed if speed > 1e-9 else np.array([1.0, 0.0])
+        out = []
+        for m in self._members:
+            if m.lean_class not in classes or abs(m.speed - speed) > _SPEED_WINDOW:
+                continue
+            base = np.round((p + m.stop * u - self.origin) / self.grid).astype(np.int64)
+            for di in (-1, 0, 1):
+                for dj in (-1, 0, 1):
+                    cell = (int(base[0] + di), int(base[1] + dj))
+                    q = self.origin + np.asarray(cell, dtype=float) * self.grid
+                    if m.stop > 1e-9:
+                        w = q - p
+                        dist = float(np.hypot(*w))
+                        if dist < 1e-9:
+                            continue
+                        heading = math.atan2(w[1], w[0])
+                        start = q - m.stop * w / dist
+                    else:
+                        heading = math.atan2(u[1], u[0])
+                        start = q
+                    c, s = math.cos(heading), math.sin(heading)
+                    rot_t = np.array([[c, s], [-s, c]])
+                    local = np.concatenate([rot_t @ (p - start), rot_t @ v])
+                    local[2] -= m.speed
+                    value = float(local @ m.shape @ local)
+                    if value <= 1.0:
+                        rank = classes.index(m.lean_class)
+                        out.append((rank, value, m, heading, start, cell))
+        out.sort(key=lambda c: (c[0], c[1]))
+        return out
+
+    def plan(
+        self,
+        state: ArrayLike,
+        *,
+        lean_deviation: tuple[float, float] | None = None,
+        cost_to_go: FloatArray | None = None,
+        settle: Callable[[NDArray[np.int64]], None] | None = None,
+    ) -> CapturePlan | None:
+        """The cheapest verified capture of ``state`` (x, y, ẋ, ẏ), or None.
+
+        Parameters
+        ----------
+        state : array_like, shape (4,)
+        lean_deviation : (float, float), optional
+            The measured lean (rad) and lean rate (rad/s) deviation from the plan's
+            (the catch's plan lean is upright), largest over both axes; settled catches
+            are considered only when it is within their band. None: only pushed ones.
+        cost_to_go : ndarray, optional
+            Cost-to-go of every library row toward the goal (inf where unreachable);
+            None ranks rest trims equally (any verified capture will do).
+        settle : callable, optional
+            Called with the rest-trim rows a clear catch could end on before their
+            ``cost_to_go`` is read (a :class:`~gracenav.planning.LazyPolicyTree` fills
+            it on demand).
+        """
+        if not self._members:
+            return None
+        st = np.asarray(state, dtype=float).reshape(4)
+        classes: tuple[str, ...] = (PUSHED,)
+        opts = self.options
+        if lean_deviation is not None and opts is not None:
+            lean, rate = opts.settled_lean
+            if abs(lean_deviation[0]) <= lean and abs(lean_deviation[1]) <= rate:
+                classes = (SETTLED, PUSHED)
+        best: tuple[float, int, float] | None = None
+        chosen = None
+        for rank, value, m, heading, start, cell in self._candidates(st, classes):
+            c, s = math.cos(heading), math.sin(heading)
+            rot = np.array([[c, -s], [s, c]])
+            if not np.all(self._clear(start + m.path @ rot.T, m.reach)):
+                continue
+            ways = self._handovers(cell)
+            if settle is not None and ways:
+                settle(np.array(sorted({w[2] for w in ways}), dtype=np.int64))
+            for shift_t, k, row in ways:
+                togo = 0.0 if cost_to_go is None else float(cost_to_go[row])
+                if not math.isfinite(togo):
+                    continue
+                total = m.policy.duration + shift_t + togo
+                key = (total, rank, value)
+                if best is None or key < best:
+                    best, chosen = key, (m, heading, start, cell, k, row)
+            if cost_to_go is None and chosen is not None:
+                break
+        if chosen is None or best is None:
+            return None
+        m, heading, start, cell, k, row = chosen
+        catch = PlacedPolicy(m.policy, heading, np.asarray(start, dtype=float))
+        shift = None
+        if k >= 0:
+            pol, angle = self._shifts[k]
+            q = self.origin + np.asarray(cell, dtype=float) * self.grid
+            shift = PlacedPolicy(pol, angle, q)
+        return CapturePlan(catch, shift, row, best[0])
+
+    def covers(self, states: ArrayLike) -> BoolArray:
+        """Whether a capture plan (with the plan lean: settled catches too) exists for
+        each state (n, 4)."""
+        pts = np.asarray(states, dtype=float).reshape(-1, 4)
+        return np.array(
+            [self.plan(s, lean_deviation=(0.0, 0.0)) is not None for s in pts], dtype=bool
+        )

@@ -1,0 +1,218 @@
+"""Capture at the robot's own state: catches placed at any heading, shifts onto the
+lattice, planning, and recovery from pushes with the paper's hybrid controller."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from gracenav.capture import (
+    PUSHED,
+    SETTLED,
+    PlacedPolicy,
+    capture_for,
+    settled_leans,
+    shift_cells,
+    verify_headings,
+)
+from gracenav.execution import CAPTURE, EventReason, ExecutionOptions, HybridController
+from gracenav.graph import build_graph
+from gracenav.library import build_library
+from gracenav.palette import load_palette
+from gracenav.policies import RegulatorOptions, push_lean_table
+from gracenav.simulate import Push, position_state, state_from_position
+from gracenav.world import load_map
+
+BOX_ROOM = {
+    "bounds": [[0.0, 0.0], [5.0, 5.0]],
+    "resolution": 0.05,
+    "obstacles": [{"polygon": [[2.0, 2.0], [3.0, 2.0], [3.0, 3.0], [2.0, 3.0]]}],
+}
+
+
+@pytest.fixture(scope="module")
+def palette():
+    return load_palette()
+
+
+@pytest.fixture(scope="module")
+def box_room(palette):
+    lib = build_library(palette, load_map(BOX_ROOM), footprint_radius=0.2, max_halvings=1)
+    return lib, build_graph(lib)
+
+
+def _catch(palette, speed: float, lean_class: str):
+    for pol in palette.catches:
+        if abs(pol.primitive.start_velocity[0] - speed) < 1e-9 and f"[{lean_class}," in pol.label:
+            return pol
+    raise AssertionError(f"no {lean_class} catch at {speed} m/s")
+
+
+def test_palette_has_catches_of_both_lean_classes_and_every_shift(palette) -> None:
+    opts = palette.options.catch
+    assert opts is not None
+    speeds = {round(float(p.primitive.start_velocity[0]), 6) for p in palette.catches}
+    # Every speed has a settled catch; every pushed one below the torque limit's reach.
+    for v in opts.speeds:
+        _catch(palette, v, SETTLED)
+        if v <= 1.0:
+            _catch(palette, v, PUSHED)
+    assert speeds == {round(v, 6) for v in opts.speeds}
+    assert len(palette.shifts) == len(shift_cells(opts, palette.d))
+    for pol in (*palette.catches, *palette.shifts):
+        assert pol.report is not None and pol.report.passed
+        assert pol.capture  # fixed D' around the reference, started only when needed
+    # Catches decelerate along +x to rest: smooth-step stop v T / 2, then the rest tail.
+    for pol in palette.catches:
+        prim = pol.primitive
+        v = float(prim.start_velocity[0])
+        assert prim.displacement[1] == pytest.approx(0.0, abs=1e-12)
+        np.testing.assert_allclose(prim.position[-1, 2:], 0.0, atol=1e-12)
+        assert prim.position[0, 2] == pytest.approx(v, abs=1e-12)
+        if v > 0:
+            brake = np.flatnonzero(np.abs(prim.position[:, 2]) > 0)[-1] * prim.dt
+            assert prim.displacement[0] == pytest.approx(v * (brake + prim.dt) / 2, rel=0.02)
+
+
+@pytest.mark.parametrize("angle", [0.3, 2.0, -2.6])
+def test_placed_catch_is_the_rotated_and_moved_primitive(palette, angle) -> None:
+    pol = _catch(palette, 0.6, PUSHED)
+    start = np.array([1.25, -0.4])
+    placed = PlacedPolicy(pol, angle, start)
+    u = np.array([math.cos(angle), math.sin(angle)])
+    ref, pos = placed.reference(0.1)
+    d = float(pol.primitive.displacement[0])
+    np.testing.assert_allclose(pos[0, :4], [*start, *(0.6 * u)], atol=1e-12)
+    np.testing.assert_allclose(placed.end_xy, start + d * u, atol=1e-12)
+    np.testing.assert_allclose(pos[-1, :2], start + d * u, atol=1e-12)
+    # The reference's ball angles put the ball where the position says (r (θ + φ)).
+    np.testing.assert_allclose(
+        0.1 * (ref.states[:, 0:2] + ref.states[:, 2:4]), pos[:, :2], atol=1e-9
+    )
+    # Domains: S is centred on the start state, G on the end at rest.
+    np.testing.assert_allclose(placed.start_domain.center, [*start, *(0.6 * u)], atol=1e-12)
+    np.testing.assert_allclose(placed.goal_domain.center, [*(start + d * u), 0, 0], atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("speed", "lean_class", "heading"),
+    [(0.5, PUSHED, 15.0), (1.0, PUSHED, 105.0), (0.3, SETTLED, 75.0), (0.8, SETTLED, 165.0)],
+)
+def test_catches_hold_at_headings_and_points_the_verifier_never_used(
+    palette, speed, lean_class, heading
+) -> None:
+    """Headings between the verified ones (every 30°), from 96 boundary points (the
+    build used 48), with the class's lean variants."""
+    pol = _catch(palette, speed, lean_class)
+    opts = palette.options.catch
+    assert opts is not None
+    reg = palette.options.regulator or RegulatorOptions()
+    leans = (
+        push_lean_table(pol.gains, reg.push_impulses, reg.push_times)
+        if lean_class == PUSHED
+        else settled_leans(opts)
+    )
+    rotated = dataclasses.replace(
+        pol, primitive=pol.primitive.rotated_by(math.radians(heading)), report=None
+    )
+    report = verify_headings(rotated, palette.options, 1, push_leans=leans, boundary_points=96)
+    assert report.passed, report
+    assert report.runs == 96 * 5
+
+
+def test_every_capture_plan_passes_an_independent_dense_check(palette, box_room) -> None:
+    """Random moving states of the box room: a plan's catch S contains the state, the
+    boundary of every tick's D' of the catch and the shift keeps the footprint clear
+    (the planner covers D' by discs along the path instead), the shift's S contains
+    the catch's G and the rest trim's S the last G (exact containment)."""
+    lib, _ = box_room
+    world = lib.world_map
+    rng = np.random.default_rng(3)
+    capture = capture_for(lib)
+    ang = np.linspace(0.0, 2.0 * np.pi, 64, endpoint=False)
+    ring = np.stack([np.cos(ang), np.sin(ang)], axis=1)
+    planned = 0
+    for _ in range(150):
+        xy = rng.uniform(0.3, 4.7, 2)
+        v = rng.uniform(-0.7, 0.7, 2)
+        state = np.array([*xy, *v])
+        plan = capture.plan(state, lean_deviation=(0.0, 0.0))
+        if plan is None:
+            continue
+        planned += 1
+        assert plan.catch.start_domain.contains(state)
+        for placed in plan.policies:
+            # 64 points on the boundary of each tick's D' (XY projection).
+            centres, shapes = placed.outer_monitor()
+            p_xy = shapes[:, :2, :2] - shapes[:, :2, 2:] @ np.linalg.solve(
+                shapes[:, 2:, 2:], shapes[:, 2:, :2]
+            )
+            ell = np.linalg.cholesky(np.linalg.inv(p_xy))
+            xy = centres[:, None, :2] + np.einsum("tij,kj->tki", ell, ring)
+            assert np.all(world.clearance(xy.reshape(-1, 2)) >= 0.2)
+        last = plan.catch.goal_domain
+        if plan.shift is not None:
+            assert plan.shift.start_domain.contains_domain(last)
+            last = plan.shift.goal_domain
+        assert lib.policy(plan.rest_row).start_domain.contains_domain(last)
+    assert planned >= 60
+
+
+def test_a_pushed_robot_is_caught_at_its_state_with_the_papers_controller(box_room) -> None:
+    """Cruising below the box at (2.5, 1.5), 0.5 m from it, pushed back and sideways:
+    no library policy contains the state, a catch does, and the task goes on without
+    balancing mode."""
+    lib, graph = box_room
+    robot = HybridController(lib, graph)
+    r = robot.palette.params.ball_radius
+    push = Push(time=4.29, impulse=(-8.5, 5.7))
+    options = ExecutionOptions(max_time=60.0, resume_from_balancing=False)
+    ep = robot.run(
+        state_from_position(np.array([1.0, 1.0, 0.0, 0.0]), r),
+        [(4.0, 4.0, 0.0, 0.0)],
+        disturbances=[push],
+        options=options,
+    )
+    reasons = [e.reason for e in ep.events]
+    assert EventReason.CAPTURE in reasons
+    assert EventReason.BALANCING not in reasons
+    assert ep.reached_goal
+    assert np.any(ep.policy == CAPTURE)
+    xy = ep.position_state[:, :2]
+    assert np.min(lib.world_map.clearance(xy)) >= 0.2
+    off = dataclasses.replace(options, capture=False)
+    ep_off = robot.run(
+        state_from_position(np.array([1.0, 1.0, 0.0, 0.0]), r),
+        [(4.0, 4.0, 0.0, 0.0)],
+        disturbances=[push],
+        options=off,
+    )
+    assert EventReason.CAPTURE not in [e.reason for e in ep_off.events]
+
+
+def test_pushes_with_the_papers_controller_recover_into_verified_domains(box_room) -> None:
+    """A seeded Monte Carlo of 24 single pushes of 0-16 N s (the benchmark's model,
+    bench/bench_pushes.py, on the same room): with catches, the paper's controller
+    (no resumption from balancing mode) reaches the goal in nearly every run, and no
+    footprint touches an obstacle."""
+    lib, graph = box_room
+    robot = HybridController(lib, graph)
+    r = robot.palette.params.ball_radius
+    rng = np.random.default_rng(11)
+    reached = 0
+    runs = 24
+    for _ in range(runs):
+        mag, ang, when = rng.uniform(0, 16), rng.uniform(0, 2 * np.pi), rng.uniform(0.5, 11.5)
+        ep = robot.run(
+            state_from_position(np.array([1.0, 1.0, 0.0, 0.0]), r),
+            [(4.0, 4.0, 0.0, 0.0)],
+            disturbances=[Push(time=when, impulse=(mag * np.cos(ang), mag * np.sin(ang)))],
+            options=ExecutionOptions(max_time=60.0, resume_from_balancing=False),
+        )
+        reached += ep.reached_goal
+        xy = position_state(ep.states, r)[:, :2]
+        assert np.min(lib.world_map.clearance(xy)) >= 0.2
+    assert reached >= runs - 2
