@@ -800,3 +800,267 @@ def _astar(
                 hg[p] = -d
                 hn[p] = j
     return _DONE, expanded, -1
+
+
+# The resumable goal-directed tree (gracenav.planning.LazyPolicyTree): a backward A*
+# from the goal over the predecessors, whose state (tentative and final costs, next
+# policies, closed flags and the open heap) lives in arrays the caller keeps between
+# calls. Heap entries are (f, -g, row) with lazy deletion, as in _astar.
+_BUDGET = 4  # status: the expansion budget of the call ran out
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _before(f1: Any, g1: Any, n1: Any, f2: Any, g2: Any, n2: Any) -> bool:
+    """Heap order of two entries (f, -g, row): lower f, then deeper, then lower row."""
+    return f1 < f2 or (f1 == f2 and (g1 < g2 or (g1 == g2 and n1 < n2)))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _sift_down(hf: Any, hg: Any, hn: Any, p: Any, size: Any) -> None:
+    vf = hf[p]
+    vg = hg[p]
+    vn = hn[p]
+    while True:
+        c = 2 * p + 1
+        if c >= size:
+            break
+        if c + 1 < size and _before(hf[c + 1], hg[c + 1], hn[c + 1], hf[c], hg[c], hn[c]):
+            c += 1
+        if _before(hf[c], hg[c], hn[c], vf, vg, vn):
+            hf[p] = hf[c]
+            hg[p] = hg[c]
+            hn[p] = hn[c]
+            p = c
+        else:
+            break
+    hf[p] = vf
+    hg[p] = vg
+    hn[p] = vn
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _multi_gauge(px: Any, py: Any, qx: Any, qy: Any, h_x: Any, h_y: Any) -> float:
+    """min over the query points (qx, qy) of the gauge of (px, py) - (qx, qy)."""
+    h = np.inf
+    for k in range(qx.size):
+        v = _gauge(px - qx[k], py - qy[k], h_x, h_y)
+        if v < h:
+            h = v
+    return 0.0 if h == np.inf else h
+
+
+@njit(cache=True, nogil=True)
+def _lazy_settle(
+    goal: int,
+    queries: Any,
+    best: bool,
+    budget: int,
+    qx: Any,
+    qy: Any,
+    type_cost: Any,
+    h_x: Any,
+    h_y: Any,
+    g: Any,
+    dist: Any,
+    nxt: Any,
+    closed: Any,
+    mark: Any,
+    hf: Any,
+    hg: Any,
+    hn: Any,
+    size: int,
+    implicit: bool,
+    indptr: Any,
+    indices: Any,
+    weights: Any,
+    row_type: Any,
+    row_point: Any,
+    nx: Any,
+    ny: Any,
+    pred_ptr: Any,
+    pred_type: Any,
+    succ_ptr: Any,
+    succ_type: Any,
+    off_x: Any,
+    off_y: Any,
+    type_first: Any,
+    lookup: Any,
+) -> Any:
+    """Resume the backward A* of a lazy tree until the ``queries`` are closed.
+
+    ``g`` holds tentative costs-to-go (inf where not reached), ``dist`` and ``nxt`` the
+    final cost-to-go and next policy of closed rows, ``hf``, ``hg``, ``hn`` the open
+    heap (``size`` entries). The heap is first re-keyed with the heuristic of the new
+    queries (the gauge from the nearest query point, (qx, qy) in cells: a consistent
+    lower bound of the cost from a query to a row) and cleaned of stale entries; then
+    rows are closed in order of g + h until every query row is closed (``best``: until
+    the cheapest query row and every query row of equal cost are closed), the heap is
+    empty (every row that reaches the goal is closed) or ``budget`` (>= 0) rows have
+    been closed. No query rows: until the heap is empty. ``mark`` (all False) is
+    scratch. Returns (status, size, hf, hg, hn, rows closed).
+
+    A row's next policy is chosen when it closes, among its closed successors j with
+    cost + dist[j] == dist[i] exactly: the smallest dist[j], then the smallest row (the
+    rule of the whole tree); with positive costs every such successor closes first
+    (g + h of a successor is below the row's by at least 1e-9 times its cost, the
+    margin of the gauge).
+    """
+    remaining = 0
+    best_cost = np.inf
+    for q in queries:
+        if closed[q]:
+            if dist[q] < best_cost:
+                best_cost = dist[q]
+        elif not mark[q]:
+            mark[q] = True
+            remaining += 1
+    if queries.size > 0 and remaining == 0:
+        return _DONE, size, hf, hg, hn, 0
+    if not best:
+        best_cost = np.inf
+    # Re-key: one entry per open row (its current tentative cost), f with the new h.
+    m = 0
+    for k in range(size):
+        v = hn[k]
+        gv = -hg[k]
+        if closed[v] or gv > g[v]:
+            continue
+        py = row_point[v] // nx
+        px = row_point[v] - py * nx
+        hf[m] = gv + _multi_gauge(px, py, qx, qy, h_x, h_y)
+        hg[m] = -gv
+        hn[m] = v
+        m += 1
+    size = m
+    for p in range(size // 2 - 1, -1, -1):
+        _sift_down(hf, hg, hn, p, size)
+    if implicit:
+        buf_i, buf_w = _buffers(pred_ptr)
+    else:
+        buf_i, buf_w = np.empty(1, np.int64), np.empty(1, np.float64)
+    sbuf = np.empty(max(succ_type.size, 1), np.int64)
+    cap = hf.size
+    expanded = 0
+    status = _DONE
+    while size > 0:
+        if hf[0] > best_cost:
+            break
+        if budget >= 0 and expanded >= budget:
+            status = _BUDGET
+            break
+        i = hn[0]
+        gi = -hg[0]
+        size -= 1
+        if size > 0:
+            hf[0] = hf[size]
+            hg[0] = hg[size]
+            hn[0] = hn[size]
+            _sift_down(hf, hg, hn, 0, size)
+        if closed[i] or gi > g[i]:
+            continue
+        closed[i] = True
+        dist[i] = gi
+        expanded += 1
+        ci = type_cost[row_type[i]]
+        if not ci >= 0.0:
+            status = _NEGATIVE
+            break
+        if i != goal:
+            ns = _successors_of(
+                i,
+                sbuf,
+                row_type,
+                row_point,
+                nx,
+                ny,
+                pred_ptr,
+                pred_type,
+                succ_ptr,
+                succ_type,
+                off_x,
+                off_y,
+                type_first,
+                lookup,
+            )
+            choice = -1
+            dj_best = np.inf
+            for a in range(ns):
+                j = sbuf[a]
+                if closed[j] and ci + dist[j] == gi and dist[j] < dj_best:
+                    choice = j
+                    dj_best = dist[j]
+            nxt[i] = choice
+        if mark[i]:
+            mark[i] = False
+            remaining -= 1
+            if best and gi < best_cost:
+                best_cost = gi
+        if implicit:
+            lo = 0
+            hi = predecessors_of(
+                i,
+                buf_i,
+                buf_w,
+                type_cost,
+                row_type,
+                row_point,
+                nx,
+                ny,
+                pred_ptr,
+                pred_type,
+                succ_ptr,
+                succ_type,
+                off_x,
+                off_y,
+                type_first,
+                lookup,
+            )
+        else:
+            lo = indptr[i]
+            hi = indptr[i + 1]
+        for k in range(lo, hi):
+            if implicit:
+                u = buf_i[k]
+                w = buf_w[k]
+            else:
+                u = indices[k]
+                w = weights[k]
+            if closed[u]:
+                continue
+            if not w >= 0.0:
+                status = _NEGATIVE
+                break
+            d = gi + w
+            if d < g[u]:
+                g[u] = d
+                py = row_point[u] // nx
+                px = row_point[u] - py * nx
+                f = d + _multi_gauge(px, py, qx, qy, h_x, h_y)
+                if size == cap:
+                    cap *= 2
+                    hf2 = np.empty(cap, np.float64)
+                    hg2 = np.empty(cap, np.float64)
+                    hn2 = np.empty(cap, np.int64)
+                    hf2[:size] = hf[:size]
+                    hg2[:size] = hg[:size]
+                    hn2[:size] = hn[:size]
+                    hf, hg, hn = hf2, hg2, hn2
+                p = size
+                size += 1
+                while p > 0:
+                    q = (p - 1) >> 1
+                    if _before(f, -d, u, hf[q], hg[q], hn[q]):
+                        hf[p] = hf[q]
+                        hg[p] = hg[q]
+                        hn[p] = hn[q]
+                        p = q
+                    else:
+                        break
+                hf[p] = f
+                hg[p] = -d
+                hn[p] = u
+        if status == _NEGATIVE or (queries.size > 0 and remaining == 0):
+            break  # (a row is closed only with its predecessors relaxed)
+    for q in queries:
+        mark[q] = False
+    return status, size, hf, hg, hn, expanded
