@@ -839,14 +839,14 @@ def _sift_down(hf: Any, hg: Any, hn: Any, p: Any, size: Any) -> None:
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _multi_gauge(px: Any, py: Any, qx: Any, qy: Any, h_x: Any, h_y: Any) -> float:
-    """min over the query points (qx, qy) of the gauge of (px, py) - (qx, qy)."""
-    h = np.inf
-    for k in range(qx.size):
-        v = _gauge(px - qx[k], py - qy[k], h_x, h_y)
-        if v < h:
-            h = v
-    return 0.0 if h == np.inf else h
+def _query_gauge(row: Any, cx: Any, cy: Any, r: Any, row_point: Any, nx: Any, h_x: Any, h_y: Any) -> float:
+    """max(0, gauge(p - c) - r) for the start point p of ``row``: a lower bound of the
+    cost from any query point q with gauge(q - c) <= r (the gauge is sublinear), as
+    consistent as the gauge itself, and 0 at every query point."""
+    py = row_point[row] // nx
+    px = row_point[row] - py * nx
+    h = _gauge(px - cx, py - cy, h_x, h_y) - r
+    return h if h > 0.0 else 0.0
 
 
 @njit(cache=True, nogil=True)
@@ -855,14 +855,16 @@ def _lazy_settle(
     queries: Any,
     best: bool,
     budget: int,
-    qx: Any,
-    qy: Any,
+    cx: float,
+    cy: float,
+    radius: float,
     type_cost: Any,
     h_x: Any,
     h_y: Any,
     g: Any,
     dist: Any,
     nxt: Any,
+    parent: Any,
     closed: Any,
     mark: Any,
     hf: Any,
@@ -899,11 +901,12 @@ def _lazy_settle(
     been closed. No query rows: until the heap is empty. ``mark`` (all False) is
     scratch. Returns (status, size, hf, hg, hn, rows closed).
 
-    A row's next policy is chosen when it closes, among its closed successors j with
-    cost + dist[j] == dist[i] exactly: the smallest dist[j], then the smallest row (the
-    rule of the whole tree); with positive costs every such successor closes first
+    ``parent`` holds each reached row's best successor so far: among the closed
+    successors j that relaxed it with cost + dist[j] == g exactly, the smallest dist[j],
+    then the smallest row (the rule of the whole tree); it becomes the row's next
+    policy when the row closes. With positive costs every such successor closes first
     (g + h of a successor is below the row's by at least 1e-9 times its cost, the
-    margin of the gauge).
+    margin of the gauge), so the choice is among all of them.
     """
     remaining = 0
     best_cost = np.inf
@@ -925,9 +928,7 @@ def _lazy_settle(
         gv = -hg[k]
         if closed[v] or gv > g[v]:
             continue
-        py = row_point[v] // nx
-        px = row_point[v] - py * nx
-        hf[m] = gv + _multi_gauge(px, py, qx, qy, h_x, h_y)
+        hf[m] = gv + _query_gauge(v, cx, cy, radius, row_point, nx, h_x, h_y)
         hg[m] = -gv
         hn[m] = v
         m += 1
@@ -938,7 +939,6 @@ def _lazy_settle(
         buf_i, buf_w = _buffers(pred_ptr)
     else:
         buf_i, buf_w = np.empty(1, np.int64), np.empty(1, np.float64)
-    sbuf = np.empty(max(succ_type.size, 1), np.int64)
     cap = hf.size
     expanded = 0
     status = _DONE
@@ -965,31 +965,7 @@ def _lazy_settle(
         if not ci >= 0.0:
             status = _NEGATIVE
             break
-        if i != goal:
-            ns = _successors_of(
-                i,
-                sbuf,
-                row_type,
-                row_point,
-                nx,
-                ny,
-                pred_ptr,
-                pred_type,
-                succ_ptr,
-                succ_type,
-                off_x,
-                off_y,
-                type_first,
-                lookup,
-            )
-            choice = -1
-            dj_best = np.inf
-            for a in range(ns):
-                j = sbuf[a]
-                if closed[j] and ci + dist[j] == gi and dist[j] < dj_best:
-                    choice = j
-                    dj_best = dist[j]
-            nxt[i] = choice
+        nxt[i] = parent[i]
         if mark[i]:
             mark[i] = False
             remaining -= 1
@@ -1031,11 +1007,15 @@ def _lazy_settle(
                 status = _NEGATIVE
                 break
             d = gi + w
+            if d == g[u]:  # an equally good successor: the smaller cost-to-go, then row
+                pu = parent[u]
+                if gi < dist[pu] or (gi == dist[pu] and i < pu):
+                    parent[u] = i
+                continue
             if d < g[u]:
                 g[u] = d
-                py = row_point[u] // nx
-                px = row_point[u] - py * nx
-                f = d + _multi_gauge(px, py, qx, qy, h_x, h_y)
+                parent[u] = i
+                f = d + _query_gauge(u, cx, cy, radius, row_point, nx, h_x, h_y)
                 if size == cap:
                     cap *= 2
                     hf2 = np.empty(cap, np.float64)

@@ -429,7 +429,7 @@ class LazyPolicyTree:
 
     Notes
     -----
-    About 33 bytes per policy (tentative and final costs, next policies, two flags)
+    About 30 bytes per policy (tentative and final costs, next policies, two flags)
     plus the open heap (24 bytes per entry). Proving a policy unreachable closes every
     policy that reaches the goal: a whole tree's search.
     """
@@ -469,6 +469,7 @@ class LazyPolicyTree:
         self.next_policy: IntArray = np.full(n, -1, dtype=np.int64)
         self._g: FloatArray = np.full(n, np.inf)
         self._g[self.goal] = 0.0
+        self._parent: NDArray[np.int32] = np.full(n, -1, dtype=np.int32)
         self._closed: NDArray[np.bool_] = np.zeros(n, dtype=np.bool_)
         self._mark: NDArray[np.bool_] = np.zeros(n, dtype=np.bool_)
         self._hf: FloatArray = np.zeros(1024)
@@ -532,24 +533,32 @@ class LazyPolicyTree:
             raise PlanningError(f"policy index outside the library (0..{n - 1}) in {rows!r}")
         if self._size == 0 or (q.size and np.all(self._closed[q])):
             return True
+        # The heuristic: the gauge from the centre of the queries' start points, less
+        # the largest gauge from the centre to one of them (one gauge per row).
         nx = self._lattice[2]
-        points = np.unique(self.graph.lattice_edges.row_point[q].astype(np.int64))
-        qy = points // nx
-        qx = (points - qy * nx).astype(np.float64)
         h_x, h_y = self._h
+        cx = cy = radius = 0.0
+        if q.size:
+            points = np.unique(self.graph.lattice_edges.row_point[q].astype(np.int64))
+            qy = (points // nx).astype(np.float64)
+            qx = points - qy * nx
+            cx, cy = float(qx.mean()), float(qy.mean())
+            radius = _gauge_of(qx - cx, qy - cy, h_x, h_y)
         status, size, hf, hg, hn, expanded = _lazy_settle(
             self.goal,
             q,
             best,
             -1 if budget is None else int(budget),
-            qx,
-            qy.astype(np.float64),
+            cx,
+            cy,
+            radius,
             self._type_cost,
             h_x,
             h_y,
             self._g,
             self.cost_to_go,
             self.next_policy,
+            self._parent,
             self._closed,
             self._mark,
             self._hf,
@@ -597,6 +606,15 @@ class LazyPolicyTree:
             cost_to_go=self.cost_to_go.copy(),
             criterion=self.criterion,
         )
+
+
+def _gauge_of(dx: FloatArray, dy: FloatArray, h_x: FloatArray, h_y: FloatArray) -> float:
+    """Largest gauge (see :func:`_gauge_facets`) of the displacements (dx, dy), with a
+    margin above rounding."""
+    if h_x.size == 0:
+        return 0.0
+    g = np.max(np.outer(dx, h_x) + np.outer(dy, h_y), axis=1)
+    return float(max(0.0, g.max()) * (1.0 + 1e-12) + 1e-12)
 
 
 def _follow(next_policy: IntArray, i: int, goal: int) -> list[int]:
