@@ -839,7 +839,9 @@ def _sift_down(hf: Any, hg: Any, hn: Any, p: Any, size: Any) -> None:
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _query_gauge(row: Any, cx: Any, cy: Any, r: Any, row_point: Any, nx: Any, h_x: Any, h_y: Any) -> float:
+def _query_gauge(
+    row: Any, cx: Any, cy: Any, r: Any, row_point: Any, nx: Any, h_x: Any, h_y: Any
+) -> float:
     """max(0, gauge(p - c) - r) for the start point p of ``row``: a lower bound of the
     cost from any query point q with gauge(q - c) <= r (the gauge is sublinear), as
     consistent as the gauge itself, and 0 at every query point."""
