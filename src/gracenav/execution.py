@@ -461,6 +461,7 @@ class HybridController:
         self.params = params if params is not None else self.palette.params
         self._adjacency = graph.search_form(self.criterion.value)
         self._trees: dict[int, PolicyTree | LazyPolicyTree] = {}
+        self._last_goal = -1  # the goal policy of the last tree asked for
         # Terminal regulators depend on the library and the goal only: shared by every
         # controller on the same library (a scenario's runs, a campaign's trials).
         self._terminals: dict[tuple[float, ...], tuple[TerminalPolicy, ...]] = (
@@ -611,9 +612,9 @@ class HybridController:
         (:meth:`PreparesGraph.search_form`, up to :data:`gracenav.graph.STORED_EDGES`
         edges); above that, a :class:`LazyPolicyTree` that :meth:`best_policy` and
         :meth:`_recovery_point` settle where they read it (a whole tree there takes
-        tens of seconds). A lazy tree is settled at the goal policies of the other
-        trees the controller holds: a surveillance task reads the next goal's tree at
-        the previous goal policy.
+        tens of seconds). A lazy tree is settled at the goal policy of the tree asked
+        for before (if it is another): a surveillance task reads the next goal's tree
+        at the previous goal policy.
         """
         tree = self._trees.get(goal_policy)
         if tree is None:
@@ -624,10 +625,9 @@ class HybridController:
                 tree = plan_tree(self._adjacency, goal_policy, criterion=self.criterion)
             self.tree_seconds.append(_time.perf_counter() - t0)
             self._trees[goal_policy] = tree
-        if isinstance(tree, LazyPolicyTree):
-            others = [g for g in self._trees if g != goal_policy]
-            if others:
-                tree.settle(others)
+        if isinstance(tree, LazyPolicyTree) and self._last_goal not in (-1, goal_policy):
+            tree.settle([self._last_goal])
+        self._last_goal = goal_policy
         return tree
 
     def _recovery_point(
