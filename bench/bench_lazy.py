@@ -22,6 +22,7 @@ are medians and maxima over the pushes; each method is timed on the same push, o
 after the other.
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python bench/bench_lazy.py [--trips 3] [--pushes 13]
+        [--sigma 0.05]
 
 The 100 m hall runs in ``bench/bench_scale.py --lazy`` (its own process, peak RSS).
 """
@@ -57,15 +58,19 @@ def captured(lib: PolicyLibrary, state: np.ndarray) -> np.ndarray:
 
 
 def push_rows(
-    lib: PolicyLibrary, path: np.ndarray, count: int, rng: np.random.Generator
+    lib: PolicyLibrary,
+    path: np.ndarray,
+    count: int,
+    rng: np.random.Generator,
+    sigma: float = SIGMA,
 ) -> list[np.ndarray]:
     """Rows captured by ``count`` pushed states along ``path`` (start states of its
-    policies, velocity perturbed by SIGMA), skipping states nothing captures."""
+    policies, velocity perturbed by ``sigma``), skipping states nothing captures."""
     out = []
     picks = np.linspace(1, max(1, path.size - 3), count).round().astype(int)
     for k in picks:
         state = lib.start_state[path[k]].copy()
-        state[2:] += rng.normal(0.0, SIGMA, 2)
+        state[2:] += rng.normal(0.0, sigma, 2)
         rows = captured(lib, state)
         if rows.size:
             out.append(rows)
@@ -85,6 +90,7 @@ def trip(
     pushes: int,
     rng: np.random.Generator,
     whole: Any = None,
+    sigma: float = SIGMA,
 ) -> dict[str, Any]:
     """Times (s) of the first plan and of every push; checks against ``whole``."""
     lib = graph.library
@@ -105,7 +111,7 @@ def trip(
     path = np.array(tree.path_from(row), dtype=np.int64)
     via = plan_path(graph, row, goal)
     kept = tree
-    for rows in push_rows(lib, path, pushes, rng):
+    for rows in push_rows(lib, path, pushes, rng, sigma):
         fresh = LazyPolicyTree(graph, goal)
         fresh.settle(first, best=True)
         before = fresh.expanded
@@ -140,6 +146,7 @@ def main() -> None:
     ap.add_argument("--trips", type=int, default=3)
     ap.add_argument("--pushes", type=int, default=13, help="pushes per trip")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--sigma", type=float, default=SIGMA, help="push: velocity std (m/s)")
     args = ap.parse_args()
     palette, note = get_palette()
     print(note)
@@ -180,11 +187,11 @@ def main() -> None:
             t0 = time.perf_counter()
             plan_tree(graph, goal)
             implicit_s.append(time.perf_counter() - t0)
-        out = trip(graph, start, goal, args.pushes, rng, whole)
+        out = trip(graph, start, goal, args.pushes, rng, whole, args.sigma)
         for k, v in out.items():
             res.setdefault(k, []).extend(v if isinstance(v, list) else [v])
     n = len(res["fresh"])
-    print(f"{args.trips} trips, {n} pushes (σ = {SIGMA * 100:g} cm/s), ms median (max):")
+    print(f"{args.trips} trips, {n} pushes (σ = {args.sigma * 100:g} cm/s), ms median (max):")
     print(f"  first plan, lazy tree        {_ms(res['first_lazy'])}")
     print(f"  first plan, plan_path (A*)   {_ms(res['first_astar'])}")
     print(f"  push, lazy tree (fresh)      {_ms(res['fresh'])}")
