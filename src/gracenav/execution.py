@@ -612,9 +612,10 @@ class HybridController:
         (:meth:`PreparesGraph.search_form`, up to :data:`gracenav.graph.STORED_EDGES`
         edges); above that, a :class:`LazyPolicyTree` that :meth:`best_policy` and
         :meth:`_recovery_point` settle where they read it (a whole tree there takes
-        tens of seconds). A lazy tree is settled at the goal policy of the tree asked
-        for before (if it is another): a surveillance task reads the next goal's tree
-        at the previous goal policy.
+        tens of seconds); its entry in :attr:`tree_seconds` is its allocation, the
+        search runs as it is read. A lazy tree is settled at the goal policy of the tree
+        asked for before (if it is another): a surveillance task reads the next goal's
+        tree at the previous goal policy.
         """
         tree = self._trees.get(goal_policy)
         if tree is None:
