@@ -477,6 +477,7 @@ class LazyPolicyTree:
         self._hn: IntArray = np.zeros(1024, dtype=np.int64)
         self._hn[0] = self.goal
         self._size = 1
+        self._keyed: tuple[float, float, float] | None = None  # the heuristic of the keys
         self.expanded = 0
 
     @property
@@ -537,7 +538,10 @@ class LazyPolicyTree:
         # the largest gauge from the centre to one of them (one gauge per row).
         nx = self._lattice[2]
         h_x, h_y = self._h
-        cx = cy = radius = 0.0
+        if best and q.size and self._keyed is not None and self._known_best(q):
+            return True
+        cx = cy = 0.0
+        radius = np.inf  # no queries: h = 0
         if q.size:
             points = np.unique(self.graph.lattice_edges.row_point[q].astype(np.int64))
             qy = (points // nx).astype(np.float64)
@@ -570,6 +574,7 @@ class LazyPolicyTree:
             *self._lattice,
         )
         self._hf, self._hg, self._hn, self._size = hf, hg, hn, int(size)
+        self._keyed = (cx, cy, radius)
         self.expanded += int(expanded)
         if status == _NEGATIVE:
             raise ConfigError(
@@ -577,6 +582,31 @@ class LazyPolicyTree:
                 "lengths (m), both >= 0"
             )
         return bool(status != _BUDGET)
+
+    def _known_best(self, q: IntArray) -> bool:
+        """Whether the cheapest of ``q`` is known without a search: one is closed at a
+        cost C, and every other costs more than C. A row not closed costs at least the
+        least key of the open heap less its heuristic under those keys (A* with a
+        consistent heuristic: an open row on its optimal path has a key at most that)."""
+        done = self._closed[q]
+        if not done.any():
+            return False
+        cost = float(self.cost_to_go[q[done]].min())
+        rest = q[~done]
+        if rest.size == 0:
+            return True
+        nx = self._lattice[2]
+        pts = self.graph.lattice_edges.row_point[rest].astype(np.int64)
+        py = pts // nx
+        assert self._keyed is not None
+        kx, ky, kr = self._keyed
+        h_x, h_y = self._h
+        h = np.zeros(rest.size)
+        if h_x.size:
+            dx, dy = (pts - py * nx) - kx, py - ky
+            h = np.maximum(np.max(np.outer(dx, h_x) + np.outer(dy, h_y), axis=1) - kr, 0.0)
+        bound = self._hf[0] - h  # with a margin far above rounding
+        return bool(np.all(bound > cost + 1e-9 * (1.0 + abs(cost))))
 
     def reachable(self, i: int) -> bool:
         """Whether the goal can be reached from policy ``i`` (closes it if it can)."""
