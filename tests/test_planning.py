@@ -599,3 +599,45 @@ def test_lazy_tree_on_real_palette_libraries(where: str) -> None:
                 assert_lazy_matches(lazy, whole, graph, cost)
             np.testing.assert_allclose(lazy.whole().cost_to_go, whole.cost_to_go, rtol=1e-12)
     assert answered > 10
+
+
+def test_lazy_tree_answers_pushes_along_its_path(monkeypatch: pytest.MonkeyPatch) -> None:
+    """After a first query, states pushed off the planned path (velocity perturbed by
+    5 cm/s): the best policy is the whole tree's, and most are answered without
+    resuming the search (a closed row provably cheapest)."""
+    import gracenav.planning as planning_module
+    from gracenav.palette import load_palette
+    from gracenav.world import office_map
+
+    calls = []
+    kernel = planning_module._lazy_settle
+
+    def counted(*args):  # type: ignore[no-untyped-def]
+        calls.append(1)
+        return kernel(*args)
+
+    monkeypatch.setattr(planning_module, "_lazy_settle", counted)
+    lib = build_library(load_palette(), office_map(14.0, 0.05, seed=1), max_halvings=0)
+    graph = build_graph(lib)
+    trims = lib.trim_indices()
+    rng = np.random.default_rng(13)
+    asked = partly_open = 0
+    for goal in rng.choice(trims, 16, replace=False):
+        whole = plan_tree(graph.csc("time"), int(goal))
+        reach = trims[np.isfinite(whole.cost_to_go[trims])]
+        start = int(reach[np.argmax(whole.cost_to_go[reach])])
+        lazy = LazyPolicyTree(build_graph(lib), int(goal))
+        lazy.settle([start], best=True)
+        for row in lazy.path_from(start)[1:-1]:
+            state = lib.start_state[row].copy()
+            state[2:] += rng.normal(0.0, 0.05, 2)
+            hits = lib.start_domain_contains(state[None, :])
+            rows = hits.indices[hits.indptr[0] : hits.indptr[1]]
+            if rows.size == 0 or not np.isfinite(whole.cost_to_go[rows]).any():
+                continue
+            partly_open += not np.all(lazy.closed(rows))
+            lazy.settle(rows, best=True)
+            assert int(np.argmin(lazy.cost_to_go[rows])) == int(np.argmin(whole.cost_to_go[rows]))
+            asked += 1
+    assert asked > 20 and partly_open > 20
+    assert len(calls) < 16 + partly_open / 2  # most needed no search
