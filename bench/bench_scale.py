@@ -11,7 +11,10 @@ after each stage (map and clearance field, library, graph, one tree)
 and the wall time of each; the parent prints a table. A child that runs out of the
 address-space limit (``--max-gib``) or the time limit is reported, not fatal.
 
-    OPENBLAS_NUM_THREADS=1 .venv/bin/python bench/bench_scale.py [--only office]
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python bench/bench_scale.py [--only office] [--lazy]
+
+``--lazy`` adds the hybrid controller's first plan through a lazy tree
+(:class:`gracenav.planning.LazyPolicyTree`) and local replans after pushes along it.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ import resource
 import subprocess
 import sys
 import time
+from typing import Any
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
@@ -36,7 +40,9 @@ def _rss_mib() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # Linux: KiB
 
 
-def child(case: str, size: float, tree_stage: bool) -> dict[str, float | int | str]:
+def child(
+    case: str, size: float, tree_stage: bool, lazy_stage: bool = False
+) -> dict[str, float | int | str]:
     """Build map, library, graph and one tree (the first, as a controller plans it:
     :meth:`PreparesGraph.search_form`); peak RSS after each.
 
@@ -87,7 +93,9 @@ def child(case: str, size: float, tree_stage: bool) -> dict[str, float | int | s
     graph = build_graph(lib)
     out["graph_s"] = time.perf_counter() - t0
     out["rss_graph_mib"] = _rss_mib()
-    out["edges"] = graph.num_edges
+    t0 = time.perf_counter()
+    out["edges"] = graph.num_edges  # counted on first use (what search_form asks)
+    out["count_s"] = time.perf_counter() - t0
     print(json.dumps(out), flush=True)
     trims = lib.trim_indices()
     goal = int(trims[np.argmin(np.linalg.norm(lib.start_xy[trims] - size / 2, axis=1))])
@@ -105,6 +113,9 @@ def child(case: str, size: float, tree_stage: bool) -> dict[str, float | int | s
     out["plan_policies"] = int(path.policies.size)
     out["rss_plan_mib"] = _rss_mib()
     print(json.dumps(out), flush=True)
+    if lazy_stage:
+        _lazy_stage(out, graph, int(start), goal)
+        print(json.dumps(out), flush=True)
     if not tree_stage:
         return out
     form = graph.search_form("time")
@@ -117,8 +128,75 @@ def child(case: str, size: float, tree_stage: bool) -> dict[str, float | int | s
     return out
 
 
+def _lazy_stage(out: dict[str, float | int | str], graph: Any, start: int, goal: int) -> None:
+    """The hybrid controller's first plan through a lazy tree (the best of the policies
+    whose S contains the start trim's start state), then pushes along its path: the
+    same tree settled on the policies that capture each pushed state, side by side
+    with ``plan_path(..., via=)``."""
+    import statistics
+
+    import numpy as np
+    from bench_lazy import captured, push_rows
+
+    from gracenav.planning import LazyPolicyTree, plan_path
+
+    lib = graph.library
+    t0 = time.perf_counter()
+    LazyPolicyTree(graph, goal).settle([goal])  # load the compiled kernel
+    out["lazy_load_s"] = time.perf_counter() - t0
+    first = captured(lib, lib.start_state[start])
+    t0 = time.perf_counter()
+    tree = LazyPolicyTree(graph, goal)
+    tree.settle(first, best=True)
+    out["lazy_first_s"] = time.perf_counter() - t0
+    out["lazy_first_expanded"] = tree.expanded
+    cost = tree.cost_to_go[first]
+    row = int(first[int(np.argmin(cost))])
+    out["lazy_first_cost"] = float(cost.min())
+    out["rss_lazy_mib"] = _rss_mib()
+    path = np.array(tree.path_from(row), dtype=np.int64)
+    via = plan_path(graph, row, goal)
+    lazy, peer = [], []
+    for rows in push_rows(lib, path, 10, np.random.default_rng(0)):
+        t0 = time.perf_counter()
+        tree.settle(rows, best=True)
+        lazy.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        replan = plan_path(graph, rows, goal, via=via)
+        peer.append(time.perf_counter() - t0)
+        assert np.isclose(replan.cost, tree.cost_to_go[rows].min(), rtol=1e-12)
+    out["rss_pushes_mib"] = _rss_mib()
+    # The hybrid controller end to end: an 8.9 m task from the centre with two pushes.
+    from gracenav.execution import ExecutionOptions, HybridController
+    from gracenav.simulate import Push, state_from_position
+
+    t0 = time.perf_counter()
+    hc = HybridController(lib, graph)
+    out["hc_init_s"] = time.perf_counter() - t0
+    centre = 0.5 * float(lib.world_map.bounds[1][0])
+    x0 = state_from_position([centre, centre, 0.0, 0.0], hc.params.ball_radius)
+    pushes = (Push(3.0, (0.0, -12.0)), Push(8.0, (10.0, 5.0)))
+    t0 = time.perf_counter()
+    ep = hc.run(
+        x0,
+        [[centre + 8.0, centre + 4.0, 0.0, 0.0]],
+        disturbances=pushes,
+        options=ExecutionOptions(max_time=60.0),
+    )
+    out["hc_run_s"] = time.perf_counter() - t0
+    out["hc_sim_s"] = float(ep.time[-1])
+    out["hc_status"] = ep.status.value
+    out["hc_domain_exits"] = sum(e.reason.value == "domain_exit" for e in ep.events)
+    out["rss_hc_mib"] = _rss_mib()
+    out["push_lazy_ms_median"] = 1e3 * statistics.median(lazy)
+    out["push_lazy_ms_max"] = 1e3 * max(lazy)
+    out["push_via_ms_median"] = 1e3 * statistics.median(peer)
+    out["push_via_ms_max"] = 1e3 * max(peer)
+    out["pushes"] = len(lazy)
+
+
 def run_child(
-    case: str, size: float, max_gib: float, timeout: float, tree: bool
+    case: str, size: float, max_gib: float, timeout: float, tree: bool, lazy: bool = False
 ) -> dict[str, object]:
     here = os.path.dirname(os.path.abspath(__file__))
     limit = int(max_gib * 2**30)
@@ -137,6 +215,7 @@ def run_child(
                 "--size",
                 str(size),
                 *([] if tree else ["--no-tree"]),
+                *(["--lazy"] if lazy else []),
             ],
             capture_output=True,
             text=True,
@@ -168,13 +247,16 @@ def main() -> None:
     ap.add_argument("--timeout", type=float, default=900.0, help="time limit per map (s)")
     ap.add_argument("--size", type=float, default=SIZE, help="side of the square maps (m)")
     ap.add_argument("--no-tree", action="store_true", help="skip the whole single-goal tree")
+    ap.add_argument(
+        "--lazy", action="store_true", help="the first plan and pushes through a lazy tree"
+    )
     ap.add_argument("--child", choices=CASES, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        print(json.dumps(child(args.child, args.size, not args.no_tree)))
+        print(json.dumps(child(args.child, args.size, not args.no_tree, args.lazy)))
         return
     results = [
-        run_child(c, args.size, args.max_gib, args.timeout, not args.no_tree)
+        run_child(c, args.size, args.max_gib, args.timeout, not args.no_tree, args.lazy)
         for c in CASES
         if args.only in (None, c)
     ]
@@ -207,6 +289,29 @@ def main() -> None:
             f"{cell('rss_graph_mib', 7, '.0f')} {cell('rss_plan_mib', 6, '.0f')} "
             f"{cell('rss_tree_mib', 6, '.0f')}"
         )
+        if "lazy_first_s" in r:
+            print(
+                f"  {r['case']} lazy tree: first plan {float(r['lazy_first_s']):.2f} s "  # type: ignore[arg-type]
+                f"({r['lazy_first_expanded']} closed, kernel load "
+                f"{float(r['lazy_load_s']):.2f} s), peak RSS {float(r['rss_lazy_mib']):.0f} MiB; "  # type: ignore[arg-type]
+                f"{r.get('pushes', '-')} pushes: lazy "
+                f"{float(r.get('push_lazy_ms_median', 'nan')):.1f} ms median "  # type: ignore[arg-type]
+                f"(max {float(r.get('push_lazy_ms_max', 'nan')):.1f}), plan_path(via=) "  # type: ignore[arg-type]
+                f"{float(r.get('push_via_ms_median', 'nan')):.1f} ms "  # type: ignore[arg-type]
+                f"(max {float(r.get('push_via_ms_max', 'nan')):.1f}), peak RSS "  # type: ignore[arg-type]
+                f"{float(r.get('rss_pushes_mib', 'nan')):.0f} MiB"  # type: ignore[arg-type]
+            )
+        if "rss_hc_mib" in r:
+            rss = float(r["rss_hc_mib"])  # type: ignore[arg-type]
+            print(f"  {r['case']} peak RSS after the controller's run {rss:.0f} MiB")
+        if "hc_run_s" in r:
+            print(
+                f"  {r['case']} hybrid controller: constructed in {float(r['hc_init_s']):.1f} s "  # type: ignore[arg-type]
+                f"(+ {float(r['count_s']):.1f} s counting the edges before), "  # type: ignore[arg-type]
+                "a point-to-point run with two pushes "
+                f"({r['hc_domain_exits']} domain exits, {r['hc_status']}) took "
+                f"{float(r['hc_run_s']):.2f} s for {float(r['hc_sim_s']):.1f} s simulated"  # type: ignore[arg-type]
+            )
         if "error" in r:
             print(f"  {r['case']} failed: {r['error']}")
         if "refused" in r:

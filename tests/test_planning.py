@@ -27,7 +27,7 @@ from gracenav._search import (
 )
 from gracenav.graph import build_graph
 from gracenav.library import build_library
-from gracenav.planning import CostCriterion, PolicyTree, plan_path, plan_tree
+from gracenav.planning import CostCriterion, LazyPolicyTree, PolicyTree, plan_path, plan_tree
 from gracenav.policies import PrimitiveKind
 from gracenav.world import load_map
 
@@ -412,3 +412,232 @@ def test_a_replan_joining_an_earlier_path_costs_the_trees_cost_to_go() -> None:
         plan_path(
             graph, int(trims[1]), int(trims[0]), via=plan_path(graph, int(trims[1]), int(trims[1]))
         )
+
+
+def assert_lazy_matches(lazy: LazyPolicyTree, whole: PolicyTree, graph, cost: str) -> int:  # type: ignore[no-untyped-def]
+    """Closed rows carry the whole tree's cost-to-go (exactly with positive costs, and
+    its next policy; with zero costs, within rounding: two zero-cost policies that
+    prepare each other leave the last bit to the order of the search); following
+    next_policy sums to that cost; the others read inf / -1. Returns how many rows
+    are closed."""
+    closed = lazy.closed(np.arange(whole.cost_to_go.size))
+    if cost == "time":
+        np.testing.assert_array_equal(lazy.cost_to_go[closed], whole.cost_to_go[closed])
+    else:
+        np.testing.assert_allclose(
+            lazy.cost_to_go[closed], whole.cost_to_go[closed], rtol=1e-12, atol=1e-12
+        )
+    assert np.all(np.isinf(lazy.cost_to_go[~closed]))
+    assert np.all(lazy.next_policy[~closed] == -1)
+    if cost == "time":
+        np.testing.assert_array_equal(lazy.next_policy[closed], whole.next_policy[closed])
+    node_cost = graph.node_cost(cost)
+    for i in np.flatnonzero(closed & np.isfinite(lazy.cost_to_go))[:40]:
+        path = lazy.path_from(int(i))
+        assert path[-1] == whole.goal
+        for a, b in itertools.pairwise(path):
+            assert b in graph.successors(a)
+        total = 0.0
+        for a in path[-2::-1]:  # summed from the goal, as the search does
+            total = total + node_cost[a]
+        assert total == lazy.cost_to_go[i]
+    return int(closed.sum())
+
+
+@pytest.mark.parametrize("dense", [True, False])
+def test_lazy_tree_closes_rows_at_the_whole_trees_cost_to_go(
+    monkeypatch: pytest.MonkeyPatch, dense: bool
+) -> None:
+    """A lazy tree settled on random queries (all of them, or the best) closes them at
+    plan_tree's cost-to-go and next policy, resumed call after call, on edges generated
+    from the lattice (both lookups) and on a stored reversed graph."""
+    import gracenav.graph as graph_module
+
+    if not dense:
+        monkeypatch.setattr(graph_module, "_DENSE_LOOKUP", 0)
+    lib, stored = small_library_graph()
+    implicit = build_graph(lib)
+    n = len(lib)
+    trims = lib.trim_indices()
+    rng = np.random.default_rng(8)
+    partial = 0
+    for cost in ("time", "distance"):
+        stored.csc(cost)
+        for goal in rng.choice(trims, 4, replace=False):
+            whole = plan_tree(stored.csc(cost), int(goal), criterion=cost)
+            reach = np.flatnonzero(np.isfinite(whole.cost_to_go))
+            for graph in (implicit, stored):
+                lazy = LazyPolicyTree(graph, int(goal), criterion=cost)
+                assert lazy._implicit is (graph is implicit)
+                for k in range(4):  # reachable rows, then any (some unreachable)
+                    rows = rng.choice(reach if k < 3 else np.arange(n), 3)
+                    best = bool(rng.integers(2))
+                    assert lazy.settle(rows, best=best)
+                    if best and np.isfinite(whole.cost_to_go[rows]).any():
+                        k = int(np.argmin(whole.cost_to_go[rows]))
+                        assert int(np.argmin(lazy.cost_to_go[rows])) == k
+                        ties = rows[whole.cost_to_go[rows] == whole.cost_to_go[rows[k]]]
+                        assert np.all(lazy.closed(ties))
+                    elif not best:
+                        assert np.all(lazy.closed(rows))
+                    closed = assert_lazy_matches(lazy, whole, graph, cost)
+                    partial += closed < n
+                got = lazy.whole()
+                np.testing.assert_allclose(got.cost_to_go, whole.cost_to_go, rtol=1e-12)
+                if cost == "time":
+                    np.testing.assert_array_equal(got.cost_to_go, whole.cost_to_go)
+                    np.testing.assert_array_equal(got.next_policy, whole.next_policy)
+                assert lazy.complete
+    assert partial > 10  # most queries leave the tree partial
+
+
+def test_lazy_tree_resumed_equals_a_fresh_search() -> None:
+    """Queries after earlier ones give what a fresh tree gives for them (the same
+    closed costs and next policies, the same best row); a query on closed ground
+    closes nothing more."""
+    lib, graph = small_library_graph()
+    trims = lib.trim_indices()
+    rng = np.random.default_rng(9)
+    used = 0
+    for goal in rng.choice(trims, 12, replace=False):
+        whole = plan_tree(graph, int(goal))
+        reach = np.flatnonzero(np.isfinite(whole.cost_to_go))
+        if reach.size < 50:
+            continue
+        used += 1
+        kept = LazyPolicyTree(graph, int(goal))
+        for _ in range(5):
+            rows = rng.choice(reach, 4, replace=False)
+            fresh = LazyPolicyTree(graph, int(goal))
+            fresh.settle(rows, best=True)
+            kept.settle(rows, best=True)
+            assert int(np.argmin(kept.cost_to_go[rows])) == int(np.argmin(fresh.cost_to_go[rows]))
+            both = fresh.closed(np.arange(len(lib))) & kept.closed(np.arange(len(lib)))
+            assert np.all(fresh.closed(np.arange(len(lib))) <= kept.closed(np.arange(len(lib))))
+            np.testing.assert_array_equal(kept.cost_to_go[both], fresh.cost_to_go[both])
+            np.testing.assert_array_equal(kept.next_policy[both], fresh.next_policy[both])
+            before = kept.expanded
+            kept.settle(rows)  # every row: no more than the remaining ones need
+            again = kept.expanded
+            kept.settle(rows)
+            assert kept.expanded == again >= before
+            np.testing.assert_array_equal(kept.cost_to_go[rows], whole.cost_to_go[rows])
+    assert used >= 3
+
+
+def test_lazy_tree_unreachable_budget_and_errors() -> None:
+    lib, graph = small_library_graph()
+    trims = lib.trim_indices()
+    rng = np.random.default_rng(10)
+    for goal in rng.choice(trims, 6, replace=False):
+        whole = plan_tree(graph, int(goal))
+        dead = np.flatnonzero(np.isinf(whole.cost_to_go))
+        if dead.size and np.isfinite(whole.cost_to_go).sum() > 50:
+            break
+    else:  # pragma: no cover - the library has dead ends
+        pytest.fail("no goal with unreachable policies")
+    lazy = LazyPolicyTree(graph, int(goal))
+    # A budget stops early and leaves a tree that resumes to the same answer.
+    far = np.flatnonzero(np.isfinite(whole.cost_to_go))
+    far = far[np.argsort(whole.cost_to_go[far])[-3:]]
+    assert not lazy.settle(far, budget=5)
+    assert lazy.expanded == 5
+    assert lazy.settle(far)
+    np.testing.assert_array_equal(lazy.cost_to_go[far], whole.cost_to_go[far])
+    # Unreachable: inf, found by closing everything that reaches the goal.
+    assert not lazy.reachable(int(dead[0]))
+    assert lazy.complete and np.all(lazy.closed(dead))
+    np.testing.assert_array_equal(lazy.cost_to_go, whole.cost_to_go)
+    with pytest.raises(PlanningError, match="cannot be reached"):
+        lazy.path_from(int(dead[0]))
+    # The best of rows some of which are unreachable: the reachable ones decide.
+    fresh = LazyPolicyTree(graph, int(goal))
+    rows = np.array([dead[0], far[0]])
+    fresh.settle(rows, best=True)
+    assert fresh.cost_to_go[far[0]] == whole.cost_to_go[far[0]]
+    with pytest.raises(PlanningError, match="outside the library"):
+        LazyPolicyTree(graph, len(lib))
+    with pytest.raises(PlanningError, match="outside the library"):
+        fresh.settle([len(lib)])
+    assert fresh.path_from(int(goal)) == [int(goal)]
+
+
+@pytest.mark.parametrize("where", ["area", "office"])
+def test_lazy_tree_on_real_palette_libraries(where: str) -> None:
+    """The real palette on the 3.5 m area (two halvings) and a 14 m office: random
+    goals, queries of the policies whose S contains a random state (best, as the hybrid
+    controller asks), then a whole lazy tree: plan_tree's costs, both criteria."""
+    from gracenav.palette import load_palette
+    from gracenav.world import office_map
+
+    pal = load_palette()
+    if where == "area":
+        wm = load_map({"bounds": [[0, 0], [3.5, 3.5]], "obstacles": [], "resolution": 0.05})
+        lib = build_library(pal, wm, max_halvings=2)
+    else:
+        lib = build_library(pal, office_map(14.0, 0.05, seed=1), max_halvings=0)
+    graph = build_graph(lib)
+    trims = lib.trim_indices()
+    rng = np.random.default_rng(12)
+    answered = 0
+    for cost in ("time", "distance"):
+        for goal in rng.choice(trims, 3, replace=False):
+            whole = plan_tree(graph.csc(cost), int(goal), criterion=cost)
+            lazy = LazyPolicyTree(build_graph(lib), int(goal), criterion=cost)
+            for row in rng.choice(len(lib), 8, replace=False):
+                state = lib.start_state[row].copy()
+                state[2:] += rng.normal(0.0, 0.05, 2)
+                hits = lib.start_domain_contains(state[None, :])
+                rows = hits.indices[hits.indptr[0] : hits.indptr[1]]
+                if rows.size == 0:
+                    continue
+                lazy.settle(rows, best=True)
+                want = whole.cost_to_go[rows]
+                if np.isfinite(want).any():
+                    assert int(np.argmin(lazy.cost_to_go[rows])) == int(np.argmin(want))
+                    answered += 1
+                assert_lazy_matches(lazy, whole, graph, cost)
+            np.testing.assert_allclose(lazy.whole().cost_to_go, whole.cost_to_go, rtol=1e-12)
+    assert answered > 10
+
+
+def test_lazy_tree_answers_pushes_along_its_path(monkeypatch: pytest.MonkeyPatch) -> None:
+    """After a first query, states pushed off the planned path (velocity perturbed by
+    5 cm/s): the best policy is the whole tree's, and most are answered without
+    resuming the search (a closed row provably cheapest)."""
+    import gracenav.planning as planning_module
+    from gracenav.palette import load_palette
+    from gracenav.world import office_map
+
+    calls = []
+    kernel = planning_module._lazy_settle
+
+    def counted(*args):  # type: ignore[no-untyped-def]
+        calls.append(1)
+        return kernel(*args)
+
+    monkeypatch.setattr(planning_module, "_lazy_settle", counted)
+    lib = build_library(load_palette(), office_map(14.0, 0.05, seed=1), max_halvings=0)
+    graph = build_graph(lib)
+    trims = lib.trim_indices()
+    rng = np.random.default_rng(13)
+    asked = partly_open = 0
+    for goal in rng.choice(trims, 16, replace=False):
+        whole = plan_tree(graph.csc("time"), int(goal))
+        reach = trims[np.isfinite(whole.cost_to_go[trims])]
+        start = int(reach[np.argmax(whole.cost_to_go[reach])])
+        lazy = LazyPolicyTree(build_graph(lib), int(goal))
+        lazy.settle([start], best=True)
+        for row in lazy.path_from(start)[1:-1]:
+            state = lib.start_state[row].copy()
+            state[2:] += rng.normal(0.0, 0.05, 2)
+            hits = lib.start_domain_contains(state[None, :])
+            rows = hits.indices[hits.indptr[0] : hits.indptr[1]]
+            if rows.size == 0 or not np.isfinite(whole.cost_to_go[rows]).any():
+                continue
+            partly_open += not np.all(lazy.closed(rows))
+            lazy.settle(rows, best=True)
+            assert int(np.argmin(lazy.cost_to_go[rows])) == int(np.argmin(whole.cost_to_go[rows]))
+            asked += 1
+    assert asked > 20 and partly_open > 20
+    assert len(calls) < 16 + partly_open / 2  # most needed no search

@@ -181,25 +181,73 @@ def _count_edges(counts: Any, forward: Any, *args: Any) -> None:
 @njit(cache=True, nogil=True)
 def _fill_edges(indptr: Any, indices: Any, forward: Any, *args: Any) -> None:
     """Column indices of every row's edges (``forward``), or row indices of every
-    column's, ascending, from the forward generator."""
-    (
-        row_type,
-        row_point,
-        nx,
-        ny,
-        pred_ptr,
-        pred_type,
-        succ_ptr,
-        succ_type,
-        off_x,
-        off_y,
-        type_first,
-        lookup,
-    ) = args
+    column's, ascending, from the forward generator. (One loop per direction, each
+    with the lattice arrays as its own parameters: a loop that tested ``forward``
+    inside and read them from the tuple ran 4 times slower.)"""
+    if forward:
+        _fill_forward(indptr, indices, *args)
+    else:
+        _fill_reverse(indptr, indices, *args)
+
+
+@njit(cache=True, nogil=True)
+def _fill_forward(
+    indptr: Any,
+    indices: Any,
+    row_type: Any,
+    row_point: Any,
+    nx: Any,
+    ny: Any,
+    pred_ptr: Any,
+    pred_type: Any,
+    succ_ptr: Any,
+    succ_type: Any,
+    off_x: Any,
+    off_y: Any,
+    type_first: Any,
+    lookup: Any,
+) -> None:
+    """The successors of every row, written into its stretch of ``indices``."""
+    for r in range(indptr.size - 1):
+        _successors_of(
+            r,
+            indices[indptr[r] : indptr[r + 1]],
+            row_type,
+            row_point,
+            nx,
+            ny,
+            pred_ptr,
+            pred_type,
+            succ_ptr,
+            succ_type,
+            off_x,
+            off_y,
+            type_first,
+            lookup,
+        )
+
+
+@njit(cache=True, nogil=True)
+def _fill_reverse(
+    indptr: Any,
+    indices: Any,
+    row_type: Any,
+    row_point: Any,
+    nx: Any,
+    ny: Any,
+    pred_ptr: Any,
+    pred_type: Any,
+    succ_ptr: Any,
+    succ_type: Any,
+    off_x: Any,
+    off_y: Any,
+    type_first: Any,
+    lookup: Any,
+) -> None:
+    """Every row appended to the columns of its successors (rows ascending)."""
     buf = np.empty(max(succ_type.size, 1), np.int64)
-    n = indptr.size - 1
     pos = indptr[:-1].copy()
-    for r in range(n):
+    for r in range(indptr.size - 1):
         k = _successors_of(
             r,
             buf,
@@ -216,14 +264,10 @@ def _fill_edges(indptr: Any, indices: Any, forward: Any, *args: Any) -> None:
             type_first,
             lookup,
         )
-        if forward:
-            for a in range(k):
-                indices[pos[r] + a] = buf[a]
-        else:
-            for a in range(k):
-                j = buf[a]
-                indices[pos[j]] = r
-                pos[j] += 1
+        for a in range(k):
+            j = buf[a]
+            indices[pos[j]] = r
+            pos[j] += 1
 
 
 # The compiled searches below fill ``dist`` (cost-to-go, inf if unreachable) and ``nxt``
@@ -800,3 +844,249 @@ def _astar(
                 hg[p] = -d
                 hn[p] = j
     return _DONE, expanded, -1
+
+
+# The resumable goal-directed tree (gracenav.planning.LazyPolicyTree): a backward A*
+# from the goal over the predecessors, whose state (tentative and final costs, next
+# policies, closed flags and the open heap) lives in arrays the caller keeps between
+# calls. Heap entries are (f, -g, row) with lazy deletion, as in _astar.
+_BUDGET = 4  # status: the expansion budget of the call ran out
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _before(f1: Any, g1: Any, n1: Any, f2: Any, g2: Any, n2: Any) -> bool:
+    """Heap order of two entries (f, -g, row): lower f, then deeper, then lower row."""
+    return f1 < f2 or (f1 == f2 and (g1 < g2 or (g1 == g2 and n1 < n2)))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _sift_down(hf: Any, hg: Any, hn: Any, p: Any, size: Any) -> None:
+    vf = hf[p]
+    vg = hg[p]
+    vn = hn[p]
+    while True:
+        c = 2 * p + 1
+        if c >= size:
+            break
+        if c + 1 < size and _before(hf[c + 1], hg[c + 1], hn[c + 1], hf[c], hg[c], hn[c]):
+            c += 1
+        if _before(hf[c], hg[c], hn[c], vf, vg, vn):
+            hf[p] = hf[c]
+            hg[p] = hg[c]
+            hn[p] = hn[c]
+            p = c
+        else:
+            break
+    hf[p] = vf
+    hg[p] = vg
+    hn[p] = vn
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _query_gauge(
+    row: Any, cx: Any, cy: Any, r: Any, row_point: Any, nx: Any, h_x: Any, h_y: Any
+) -> float:
+    """max(0, gauge(p - c) - r) for the start point p of ``row``: a lower bound of the
+    cost from any query point q with gauge(q - c) <= r (the gauge is sublinear), as
+    consistent as the gauge itself, and 0 at every query point."""
+    py = row_point[row] // nx
+    px = row_point[row] - py * nx
+    h = _gauge(px - cx, py - cy, h_x, h_y) - r
+    return h if h > 0.0 else 0.0
+
+
+@njit(cache=True, nogil=True)
+def _lazy_settle(
+    goal: int,
+    queries: Any,
+    best: bool,
+    budget: int,
+    cx: float,
+    cy: float,
+    radius: float,
+    type_cost: Any,
+    h_x: Any,
+    h_y: Any,
+    g: Any,
+    dist: Any,
+    nxt: Any,
+    parent: Any,
+    closed: Any,
+    mark: Any,
+    hf: Any,
+    hg: Any,
+    hn: Any,
+    size: int,
+    implicit: bool,
+    indptr: Any,
+    indices: Any,
+    weights: Any,
+    row_type: Any,
+    row_point: Any,
+    nx: Any,
+    ny: Any,
+    pred_ptr: Any,
+    pred_type: Any,
+    succ_ptr: Any,
+    succ_type: Any,
+    off_x: Any,
+    off_y: Any,
+    type_first: Any,
+    lookup: Any,
+) -> Any:
+    """Resume the backward A* of a lazy tree until the ``queries`` are closed.
+
+    ``g`` holds tentative costs-to-go (inf where not reached), ``dist`` and ``nxt`` the
+    final cost-to-go and next policy of closed rows, ``hf``, ``hg``, ``hn`` the open
+    heap (``size`` entries). The heap is first re-keyed with the heuristic of the new
+    queries (the gauge from the nearest query point, (qx, qy) in cells: a consistent
+    lower bound of the cost from a query to a row) and cleaned of stale entries; then
+    rows are closed in order of g + h until every query row is closed (``best``: until
+    the cheapest query row and every query row of equal cost are closed), the heap is
+    empty (every row that reaches the goal is closed) or ``budget`` (>= 0) rows have
+    been closed. No query rows: until the heap is empty. ``mark`` (all False) is
+    scratch. Returns (status, size, hf, hg, hn, rows closed).
+
+    ``parent`` holds each reached row's best successor so far: among the closed
+    successors j that relaxed it with cost + dist[j] == g exactly, the smallest dist[j],
+    then the smallest row (the rule of the whole tree); it becomes the row's next
+    policy when the row closes. With positive costs every such successor closes first
+    (g + h of a successor is below the row's by at least 1e-9 times its cost, the
+    margin of the gauge), so the choice is among all of them.
+    """
+    remaining = 0
+    best_cost = np.inf
+    for q in queries:
+        if closed[q]:
+            if dist[q] < best_cost:
+                best_cost = dist[q]
+        elif not mark[q]:
+            mark[q] = True
+            remaining += 1
+    if queries.size > 0 and remaining == 0:
+        return _DONE, size, hf, hg, hn, 0
+    if not best:
+        best_cost = np.inf
+    # Re-key: one entry per open row (its current tentative cost), f with the new h.
+    m = 0
+    for k in range(size):
+        v = hn[k]
+        gv = -hg[k]
+        if closed[v] or gv > g[v]:
+            continue
+        hf[m] = gv + _query_gauge(v, cx, cy, radius, row_point, nx, h_x, h_y)
+        hg[m] = -gv
+        hn[m] = v
+        m += 1
+    size = m
+    for p in range(size // 2 - 1, -1, -1):
+        _sift_down(hf, hg, hn, p, size)
+    if implicit:
+        buf_i, buf_w = _buffers(pred_ptr)
+    else:
+        buf_i, buf_w = np.empty(1, np.int64), np.empty(1, np.float64)
+    cap = hf.size
+    expanded = 0
+    status = _DONE
+    while size > 0:
+        if hf[0] > best_cost:
+            break
+        if budget >= 0 and expanded >= budget:
+            status = _BUDGET
+            break
+        i = hn[0]
+        gi = -hg[0]
+        size -= 1
+        if size > 0:
+            hf[0] = hf[size]
+            hg[0] = hg[size]
+            hn[0] = hn[size]
+            _sift_down(hf, hg, hn, 0, size)
+        if closed[i] or gi > g[i]:
+            continue
+        closed[i] = True
+        dist[i] = gi
+        expanded += 1
+        ci = type_cost[row_type[i]]
+        if not ci >= 0.0:
+            status = _NEGATIVE
+            break
+        nxt[i] = parent[i]
+        if mark[i]:
+            mark[i] = False
+            remaining -= 1
+            if best and gi < best_cost:
+                best_cost = gi
+        if implicit:
+            lo = 0
+            hi = predecessors_of(
+                i,
+                buf_i,
+                buf_w,
+                type_cost,
+                row_type,
+                row_point,
+                nx,
+                ny,
+                pred_ptr,
+                pred_type,
+                succ_ptr,
+                succ_type,
+                off_x,
+                off_y,
+                type_first,
+                lookup,
+            )
+        else:
+            lo = indptr[i]
+            hi = indptr[i + 1]
+        for k in range(lo, hi):
+            if implicit:
+                u = buf_i[k]
+                w = buf_w[k]
+            else:
+                u = indices[k]
+                w = weights[k]
+            if closed[u]:
+                continue
+            if not w >= 0.0:
+                status = _NEGATIVE
+                break
+            d = gi + w
+            if d == g[u]:  # an equally good successor: the smaller cost-to-go, then row
+                pu = parent[u]
+                if gi < dist[pu] or (gi == dist[pu] and i < pu):
+                    parent[u] = i
+                continue
+            if d < g[u]:
+                g[u] = d
+                parent[u] = i
+                f = d + _query_gauge(u, cx, cy, radius, row_point, nx, h_x, h_y)
+                if size == cap:
+                    cap *= 2
+                    hf2 = np.empty(cap, np.float64)
+                    hg2 = np.empty(cap, np.float64)
+                    hn2 = np.empty(cap, np.int64)
+                    hf2[:size] = hf[:size]
+                    hg2[:size] = hg[:size]
+                    hn2[:size] = hn[:size]
+                    hf, hg, hn = hf2, hg2, hn2
+                p = size
+                size += 1
+                while p > 0:
+                    q = (p - 1) >> 1
+                    if _before(f, -d, u, hf[q], hg[q], hn[q]):
+                        hf[p] = hf[q]
+                        hg[p] = hg[q]
+                        hn[p] = hn[q]
+                        p = q
+                    else:
+                        break
+                hf[p] = f
+                hg[p] = -d
+                hn[p] = u
+        if status == _NEGATIVE or (queries.size > 0 and remaining == 0):
+            break  # (a row is closed only with its predecessors relaxed)
+    for q in queries:
+        mark[q] = False
+    return status, size, hf, hg, hn, expanded

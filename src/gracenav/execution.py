@@ -29,7 +29,7 @@ from gracenav.errors import ConfigError, PlanningError
 from gracenav.graph import PreparesGraph
 from gracenav.library import PolicyLibrary, quarter_turn
 from gracenav.params import BallbotParams
-from gracenav.planning import CostCriterion, PolicyTree, plan_tree
+from gracenav.planning import CostCriterion, LazyPolicyTree, PolicyTree, plan_tree
 from gracenav.policies import MotionPolicy, PrimitiveKind, instantiated_reference
 from gracenav.replanning import HOLD_MARGIN, ObstacleSensing, ObstacleTracker, ReplanEvent
 from gracenav.simulate import (
@@ -317,6 +317,8 @@ _MAX_STALLED_SEGMENTS = 8
 _BALANCING_MARGIN = 0.05
 #: Nearest rest-trim starts balancing mode considers as the point to hold.
 _BALANCING_SEARCH = 64
+#: Most policies a lazy tree closes to find where balancing mode holds the robot.
+_LAZY_RECOVERY_BUDGET = 200_000
 
 #: Distance (m, m/s) within which a goal counts as the end state of a lattice trim.
 _ON_LATTICE = 1e-9
@@ -473,7 +475,8 @@ class HybridController:
         self.gains = self.palette.gains
         self.params = params if params is not None else self.palette.params
         self._adjacency = graph.search_form(self.criterion.value)
-        self._trees: dict[int, PolicyTree] = {}
+        self._trees: dict[int, PolicyTree | LazyPolicyTree] = {}
+        self._last_goal = -1  # the goal policy of the last tree asked for
         # Terminal regulators depend on the library and the goal only: shared by every
         # controller on the same library (a scenario's runs, a campaign's trials).
         self._terminals: dict[tuple[float, ...], tuple[TerminalPolicy, ...]] = (
@@ -617,18 +620,37 @@ class HybridController:
         self._terminals[key] = result
         return result
 
-    def tree(self, goal_policy: int) -> PolicyTree:
-        """The single-goal optimal tree toward library row ``goal_policy`` (cached)."""
+    def tree(self, goal_policy: int) -> PolicyTree | LazyPolicyTree:
+        """The single-goal optimal tree toward library row ``goal_policy`` (cached).
+
+        The whole tree (:func:`plan_tree`) when the graph keeps its reversed graph
+        (:meth:`PreparesGraph.search_form`, up to :data:`gracenav.graph.STORED_EDGES`
+        edges); above that, a :class:`LazyPolicyTree` that :meth:`best_policy` and
+        :meth:`_recovery_point` settle where they read it (a whole tree there takes
+        tens of seconds); its entry in :attr:`tree_seconds` is its allocation, the
+        search runs as it is read. A lazy tree is settled at the goal policy of the tree
+        asked for before (if it is another): a surveillance task reads the next goal's
+        tree at the previous goal policy.
+        """
         tree = self._trees.get(goal_policy)
         if tree is None:
             t0 = _time.perf_counter()
-            tree = plan_tree(self._adjacency, goal_policy, criterion=self.criterion)
+            if self._adjacency is self.graph:
+                tree = LazyPolicyTree(self.graph, goal_policy, criterion=self.criterion)
+            else:
+                tree = plan_tree(self._adjacency, goal_policy, criterion=self.criterion)
             self.tree_seconds.append(_time.perf_counter() - t0)
             self._trees[goal_policy] = tree
+        if isinstance(tree, LazyPolicyTree) and self._last_goal not in (-1, goal_policy):
+            tree.settle([self._last_goal])
+        self._last_goal = goal_policy
         return tree
 
     def _recovery_point(
-        self, p: FloatArray, tree: PolicyTree, dyn: ObstacleTracker | None = None
+        self,
+        p: FloatArray,
+        tree: PolicyTree | LazyPolicyTree,
+        dyn: ObstacleTracker | None = None,
     ) -> FloatArray:
         """Where balancing mode holds the robot: the start of the nearest rest trim of
         the library that reaches the goal and that the robot can be driven to without
@@ -638,10 +660,22 @@ class HybridController:
         current position if none of the :data:`_BALANCING_SEARCH` nearest qualifies.
         With moving obstacles (``dyn``), a point or a segment a known obstacle may reach
         within :data:`gracenav.replanning.HOLD_HORIZON` is not a candidate either, and
-        when they block the way every unblocked rest trim is a candidate."""
+        when they block the way every unblocked rest trim is a candidate.
+
+        On a lazy tree, "reaches the goal" is what the search knows: it is settled (at
+        most :data:`_LAZY_RECOVERY_BUDGET` more policies closed) until the cheapest of
+        the :data:`_BALANCING_SEARCH` nearest rest trims is closed, and every rest trim
+        with a path to the goal found so far (closed or open) is a candidate; one the
+        search has not met yet is not."""
         here = np.asarray(p[:2], dtype=float)
         all_rest = self.library.trim_indices(PrimitiveKind.REST)
-        passes = [all_rest[np.isfinite(tree.cost_to_go[all_rest]) | (all_rest == tree.goal)]]
+        if isinstance(tree, LazyPolicyTree):
+            near = np.argsort(np.linalg.norm(self.library.start_xy[all_rest] - here, axis=1))
+            tree.settle(all_rest[near[:_BALANCING_SEARCH]], best=True, budget=_LAZY_RECOVERY_BUDGET)
+            reaches = tree.reached(all_rest)
+        else:
+            reaches = np.isfinite(tree.cost_to_go[all_rest])
+        passes = [all_rest[reaches | (all_rest == tree.goal)]]
         if dyn is not None and np.any(dyn.blocked):
             # The way is blocked: any free rest trim will do to wait for it to clear.
             passes.append(all_rest[~dyn.blocked[all_rest]])
@@ -666,7 +700,9 @@ class HybridController:
                     return np.asarray(q, dtype=float)
         return here
 
-    def capture_plan(self, x: ArrayLike, tree: PolicyTree) -> CapturePlan | None:
+    def capture_plan(
+        self, x: ArrayLike, tree: PolicyTree | LazyPolicyTree
+    ) -> CapturePlan | None:
         """The cheapest verified capture (catch, shift, rest trim toward the tree's goal)
         of the model state ``x`` (8,), or None (see :class:`gracenav.capture.Capture`).
         Settled catches are considered when the lean and lean rate (norms over both
@@ -675,22 +711,36 @@ class HybridController:
         xs = np.asarray(x, dtype=float)
         p = position_state(xs, self.params.ball_radius)
         deviation = (float(np.hypot(*xs[2:4])), float(np.hypot(*xs[6:8])))
-        return capture.plan(p, lean_deviation=deviation, cost_to_go=tree.cost_to_go)
+        settle = None
+        if isinstance(tree, LazyPolicyTree):  # close the cheapest of the rows asked for
+            lazy = tree
 
-    def best_policy(self, p: ArrayLike, tree: PolicyTree) -> int:
+            def settle(rows: IntArray) -> None:
+                lazy.settle(rows, best=True, budget=_LAZY_RECOVERY_BUDGET)
+
+        return capture.plan(
+            p, lean_deviation=deviation, cost_to_go=tree.cost_to_go, settle=settle
+        )
+
+    def best_policy(self, p: ArrayLike, tree: PolicyTree | LazyPolicyTree) -> int:
         """The policy with the lowest cost-to-go whose S contains ``p`` (−1 if none).
 
         Capture regulators are candidates only when no other policy that reaches the
-        goal contains ``p``: they catch a robot the navigation policies cannot."""
+        goal contains ``p``: they catch a robot the navigation policies cannot. A lazy
+        tree is settled until the cheapest of the other policies (of the regulators if
+        only they contain ``p``) is closed, with its ties: the same choice as the whole
+        tree's (a whole search if none of them reaches the goal)."""
         hits = self.library.start_domain_contains(np.asarray(p, dtype=float)[None, :])
         idx = hits.indices[hits.indptr[0] : hits.indptr[1]]
         if idx.size == 0:
             return -1
+        capture = self.library.types.is_capture[self.library.type_index[idx]]
+        if isinstance(tree, LazyPolicyTree):
+            tree.settle(idx[~capture] if np.any(~capture) else idx, best=True)
         cost = tree.cost_to_go[idx]
         ok = np.isfinite(cost)
         if not np.any(ok):
             return -1
-        capture = self.library.types.is_capture[self.library.type_index[idx]]
         if np.any(ok & ~capture):
             cost = np.where(capture, np.inf, cost)
         return int(idx[int(np.argmin(cost))])

@@ -55,10 +55,12 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import ConvexHull, QhullError
 
 from gracenav._search import (
+    _BUDGET,
     _NEGATIVE,
     _REVISITED,
     _TOO_MANY_COSTS,
     _astar,
+    _lazy_settle,
     _search_heap,
     _search_heap_lattice,
     _search_queues,
@@ -67,7 +69,14 @@ from gracenav._search import (
 from gracenav.errors import ConfigError, PlanningError
 from gracenav.graph import PreparesGraph
 
-__all__ = ["CostCriterion", "PolicyPath", "PolicyTree", "plan_path", "plan_tree"]
+__all__ = [
+    "CostCriterion",
+    "LazyPolicyTree",
+    "PolicyPath",
+    "PolicyTree",
+    "plan_path",
+    "plan_tree",
+]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -367,3 +376,281 @@ def _gauge_facets(
         np.ascontiguousarray(margin * eq[keep, 0] / b),
         np.ascontiguousarray(margin * eq[keep, 1] / b),
     )
+
+
+class LazyPolicyTree:
+    """The single-goal optimal tree Γ(Ω, G), computed only as far as it is read.
+
+    A backward A* from the goal policy over the predecessors (the graph's stored
+    reversed graph for the criterion if it has built one, else edges generated from the
+    lattice), resumed by every :meth:`settle`. Its key is g + h: g the cost-to-go found
+    so far (exact once a policy is *closed*), h a lower bound of the cost from the
+    policies asked for (the *queries*) to the policy: the gauge of :func:`plan_path`
+    applied to the displacement from the nearest query's start to the policy's start,
+    consistent, so each policy closes at its exact cost-to-go. A new call re-keys the
+    open policies with its own queries' heuristic and continues: what is closed stays
+    closed, so a query on ground already explored costs nothing, and one near it (a
+    robot pushed off its path) only the few policies between.
+
+    Closed policies have the cost-to-go of :func:`plan_tree` (the same floating-point
+    sums) and, with positive costs, its next policy (among equally good successors the
+    smallest cost-to-go, then the smallest row: every such successor closes first);
+    with zero costs, a successor closed before the policy (the tree stays acyclic).
+
+    This is mutable search state (unlike :class:`PolicyTree`), owned by one controller.
+
+    Parameters
+    ----------
+    graph : PreparesGraph
+    goal : int
+        Library row of the goal policy.
+    criterion : CostCriterion or str
+
+    Attributes
+    ----------
+    goal : int
+    criterion : CostCriterion
+    cost_to_go : ndarray, shape (N,)
+        Cost (s or m) to the goal of each *closed* policy; inf for every other policy
+        (not yet closed, or unreachable once :attr:`complete`). Read it only for rows
+        that :meth:`settle` has closed.
+    next_policy : ndarray of int, shape (N,)
+        Optimal next policy of each closed policy; −1 for the goal and for every policy
+        not closed.
+    expanded : int
+        Policies closed so far (a measure of the work done).
+
+    Raises
+    ------
+    PlanningError
+        If ``goal`` is not a library index.
+    ConfigError
+        If the library has 2**31 - 1 policies or more.
+
+    Notes
+    -----
+    About 30 bytes per policy (tentative and final costs, next policies, two flags)
+    plus the open heap (24 bytes per entry). Proving a policy unreachable closes every
+    policy that reaches the goal: a whole tree's search.
+    """
+
+    def __init__(
+        self,
+        graph: PreparesGraph,
+        goal: int,
+        *,
+        criterion: CostCriterion | str = CostCriterion.TIME,
+    ) -> None:
+        crit = CostCriterion(criterion) if isinstance(criterion, str) else criterion
+        n = graph.num_nodes
+        if not 0 <= goal < n:
+            raise PlanningError(f"goal policy index {goal} is outside the library (0..{n - 1})")
+        if n >= 2**31 - 1:
+            raise ConfigError(f"a tree is searched over fewer than 2**31 - 1 policies, got {n}")
+        self.graph = graph
+        self.goal = int(goal)
+        self.criterion = crit
+        edges = graph.lattice_edges
+        self._lattice = edges.kernel_args()
+        self._type_cost = np.ascontiguousarray(graph.type_cost(crit.value), dtype=np.float64)
+        self._h = _gauge_facets(edges.offset, self._type_cost, np.diff(edges.succ_ptr) > 0)
+        stored = graph.cached_csc(crit.value)
+        if stored is None:
+            empty = np.zeros(1, dtype=np.int64)
+            self._reverse: tuple[Any, Any, Any] = (empty, empty, np.zeros(1))
+        else:
+            self._reverse = (
+                stored.indptr,
+                stored.indices,
+                np.ascontiguousarray(stored.data, dtype=np.float64),
+            )
+        self._implicit = stored is None
+        self.cost_to_go: FloatArray = np.full(n, np.inf)
+        self.next_policy: IntArray = np.full(n, -1, dtype=np.int64)
+        self._g: FloatArray = np.full(n, np.inf)
+        self._g[self.goal] = 0.0
+        self._parent: NDArray[np.int32] = np.full(n, -1, dtype=np.int32)
+        self._closed: NDArray[np.bool_] = np.zeros(n, dtype=np.bool_)
+        self._mark: NDArray[np.bool_] = np.zeros(n, dtype=np.bool_)
+        self._hf: FloatArray = np.zeros(1024)
+        self._hg: FloatArray = np.zeros(1024)
+        self._hn: IntArray = np.zeros(1024, dtype=np.int64)
+        self._hn[0] = self.goal
+        self._size = 1
+        self._keyed: tuple[float, float, float] | None = None  # the heuristic of the keys
+        self.expanded = 0
+
+    @property
+    def complete(self) -> bool:
+        """Whether every policy that reaches the goal is closed (the whole tree)."""
+        return self._size == 0
+
+    def closed(self, rows: ArrayLike) -> NDArray[np.bool_]:
+        """Whether each of ``rows`` is closed (its cost-to-go and next policy final);
+        after :attr:`complete`, every row is (inf for the unreachable)."""
+        out: NDArray[np.bool_] = self._closed[np.asarray(rows, dtype=np.int64)] | self.complete
+        return out
+
+    def reached(self, rows: ArrayLike) -> NDArray[np.bool_]:
+        """Whether each of ``rows`` is known to reach the goal: closed with a finite
+        cost, or open (its tentative cost is the cost of a path to the goal). False
+        says only that the search has not met the row yet, unless :attr:`complete`."""
+        out: NDArray[np.bool_] = np.isfinite(self._g[np.asarray(rows, dtype=np.int64)])
+        return out
+
+    def settle(
+        self, rows: ArrayLike = (), *, best: bool = False, budget: int | None = None
+    ) -> bool:
+        """Resume the search until ``rows`` are closed.
+
+        Parameters
+        ----------
+        rows : array_like of int
+            Library rows to close (e.g. the policies whose S contains the robot's
+            state). Empty: close every policy that reaches the goal.
+        best : bool
+            Stop once the cheapest of ``rows`` and every one of equal cost are closed:
+            the others then cost more (``argmin`` over :attr:`cost_to_go` of ``rows``
+            is the best policy, with the same ties as the whole tree). A row that
+            cannot reach the goal costs a whole search only if none of ``rows`` can.
+        budget : int, optional
+            Most policies to close in this call.
+
+        Returns
+        -------
+        bool
+            False if ``budget`` ran out first (what was closed stays closed).
+
+        Raises
+        ------
+        PlanningError
+            If a row is not a library index.
+        ConfigError
+            If a policy cost the search meets is negative or NaN.
+        """
+        q = np.ascontiguousarray(np.atleast_1d(np.asarray(rows, dtype=np.int64)))
+        n = self._g.size
+        if q.size and (q.min() < 0 or q.max() >= n):
+            raise PlanningError(f"policy index outside the library (0..{n - 1}) in {rows!r}")
+        if self._size == 0 or (q.size and np.all(self._closed[q])):
+            return True
+        # The heuristic: the gauge from the centre of the queries' start points, less
+        # the largest gauge from the centre to one of them (one gauge per row).
+        nx = self._lattice[2]
+        h_x, h_y = self._h
+        if best and q.size and self._keyed is not None and self._known_best(q):
+            return True
+        cx = cy = 0.0
+        radius = np.inf  # no queries: h = 0
+        if q.size:
+            points = np.unique(self.graph.lattice_edges.row_point[q].astype(np.int64))
+            qy = (points // nx).astype(np.float64)
+            qx = points - qy * nx
+            cx, cy = float(qx.mean()), float(qy.mean())
+            radius = _gauge_of(qx - cx, qy - cy, h_x, h_y)
+        status, size, hf, hg, hn, expanded = _lazy_settle(
+            self.goal,
+            q,
+            best,
+            -1 if budget is None else int(budget),
+            cx,
+            cy,
+            radius,
+            self._type_cost,
+            h_x,
+            h_y,
+            self._g,
+            self.cost_to_go,
+            self.next_policy,
+            self._parent,
+            self._closed,
+            self._mark,
+            self._hf,
+            self._hg,
+            self._hn,
+            self._size,
+            self._implicit,
+            *self._reverse,
+            *self._lattice,
+        )
+        self._hf, self._hg, self._hn, self._size = hf, hg, hn, int(size)
+        self._keyed = (cx, cy, radius)
+        self.expanded += int(expanded)
+        if status == _NEGATIVE:
+            raise ConfigError(
+                "a policy has a negative or NaN cost; costs are policy durations (s) or path "
+                "lengths (m), both >= 0"
+            )
+        return bool(status != _BUDGET)
+
+    def _known_best(self, q: IntArray) -> bool:
+        """Whether the cheapest of ``q`` is known without a search: one is closed at a
+        cost C, and every other costs more than C. A row not closed costs at least the
+        least key of the open heap less its heuristic under those keys (A* with a
+        consistent heuristic: an open row on its optimal path has a key at most that)."""
+        done = self._closed[q]
+        if not done.any():
+            return False
+        cost = float(self.cost_to_go[q[done]].min())
+        rest = q[~done]
+        if rest.size == 0:
+            return True
+        nx = self._lattice[2]
+        pts = self.graph.lattice_edges.row_point[rest].astype(np.int64)
+        py = pts // nx
+        assert self._keyed is not None
+        kx, ky, kr = self._keyed
+        h_x, h_y = self._h
+        h = np.zeros(rest.size)
+        if h_x.size:
+            dx, dy = (pts - py * nx) - kx, py - ky
+            h = np.maximum(np.max(np.outer(dx, h_x) + np.outer(dy, h_y), axis=1) - kr, 0.0)
+        bound = self._hf[0] - h  # with a margin far above rounding
+        return bool(np.all(bound > cost + 1e-9 * (1.0 + abs(cost))))
+
+    def reachable(self, i: int) -> bool:
+        """Whether the goal can be reached from policy ``i`` (closes it if it can)."""
+        self.settle([int(i)])
+        return bool(np.isfinite(self.cost_to_go[i]))
+
+    def path_from(self, i: int) -> list[int]:
+        """Policy indices from ``i`` to the goal, both included (closes ``i``).
+
+        Raises
+        ------
+        PlanningError
+            If the goal is unreachable from ``i``.
+        """
+        if not self.reachable(i):
+            raise PlanningError(
+                f"the goal policy {self.goal} cannot be reached from library policy {i}"
+            )
+        return _follow(self.next_policy, int(i), self.goal)
+
+    def whole(self) -> PolicyTree:
+        """The whole tree (closes every policy that reaches the goal), as a copy."""
+        self.settle()
+        return PolicyTree(
+            goal=self.goal,
+            next_policy=self.next_policy.copy(),
+            cost_to_go=self.cost_to_go.copy(),
+            criterion=self.criterion,
+        )
+
+
+def _gauge_of(dx: FloatArray, dy: FloatArray, h_x: FloatArray, h_y: FloatArray) -> float:
+    """Largest gauge (see :func:`_gauge_facets`) of the displacements (dx, dy), with a
+    margin above rounding."""
+    if h_x.size == 0:
+        return 0.0
+    g = np.max(np.outer(dx, h_x) + np.outer(dy, h_y), axis=1)
+    return float(max(0.0, g.max()) * (1.0 + 1e-12) + 1e-12)
+
+
+def _follow(next_policy: IntArray, i: int, goal: int) -> list[int]:
+    path = [i]
+    while path[-1] != goal:
+        path.append(int(next_policy[path[-1]]))
+        if len(path) > next_policy.size or path[-1] < 0:  # pragma: no cover - a tree
+            raise PlanningError("corrupt policy tree (cycle)")
+    return path

@@ -46,7 +46,9 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from gracenav.planning import PolicyTree
+from gracenav import graph as _graph
+from gracenav.errors import ConfigError
+from gracenav.planning import LazyPolicyTree, PolicyTree
 from gracenav.world.moving import MovingObstacle
 
 __all__ = [
@@ -629,6 +631,19 @@ def _warm_up(library: Any, graph: Any, swept: SweptDomains) -> None:
     )
 
 
+def _whole(tree: PolicyTree | LazyPolicyTree) -> PolicyTree:
+    """``tree`` if it is a whole tree; the repair cannot start from a lazy one."""
+    if isinstance(tree, LazyPolicyTree):
+        raise ConfigError(
+            f"moving obstacles need the whole single-goal tree, and on this graph "
+            f"({tree.graph.num_edges} edges, above gracenav.graph.STORED_EDGES = "
+            f"{_graph.STORED_EDGES}) the hybrid controller computes it lazily: run tasks with "
+            "moving obstacles on a smaller map or region (one library per region), or "
+            "without moving obstacles"
+        )
+    return tree
+
+
 class ObstacleTracker:
     """The hybrid controller's view of the moving obstacles during one run: what it
     knows, which policies that blocks, the repaired tree, and the replan log.
@@ -680,9 +695,16 @@ class ObstacleTracker:
         """Whether it is time to look again."""
         return t >= self.next_time - 1e-9
 
-    def update(self, t: float, xy: FloatArray, tree: PolicyTree) -> PolicyTree:
+    def update(self, t: float, xy: FloatArray, tree: PolicyTree | LazyPolicyTree) -> PolicyTree:
         """Look at time ``t`` from ``xy``, block and free policies, repair ``tree``
-        (the tree without the previously blocked policies) and log the replan."""
+        (the tree without the previously blocked policies) and log the replan.
+
+        Raises
+        ------
+        ConfigError
+            If ``tree`` is a :class:`LazyPolicyTree`: the repair needs a whole tree.
+        """
+        tree = _whole(tree)
         known = sense(self.obstacles, xy, t, self.sensing)
         self.next_time = t + self.sensing.period
         before = {k.index for k in self.known}
@@ -710,9 +732,10 @@ class ObstacleTracker:
         self.blocked = blocked
         return new
 
-    def retarget(self, tree: PolicyTree) -> PolicyTree:
+    def retarget(self, tree: PolicyTree | LazyPolicyTree) -> PolicyTree:
         """``tree`` (a tree of the whole library, toward a new goal) without the
-        currently blocked policies."""
+        currently blocked policies (ConfigError for a lazy tree, as :meth:`update`)."""
+        tree = _whole(tree)
         if not np.any(self.blocked):
             return tree
         return repair_tree(tree, self.graph, np.zeros_like(self.blocked), self.blocked)[0]
