@@ -29,7 +29,7 @@ from gracenav.world import load_map
 BOX_ROOM = {
     "bounds": [[0.0, 0.0], [5.0, 5.0]],
     "resolution": 0.05,
-    "obstacles": [{"polygon": [[2.0, 2.0], [3.0, 2.0], [3.0, 3.0], [2.0, 3.0]]}],
+    "obstacles": [{"rectangle": {"min": [2.0, 2.0], "max": [3.0, 3.0]}}],
 }
 
 
@@ -83,15 +83,14 @@ def test_placed_catch_is_the_rotated_and_moved_primitive(palette, angle) -> None
     start = np.array([1.25, -0.4])
     placed = PlacedPolicy(pol, angle, start)
     u = np.array([math.cos(angle), math.sin(angle)])
-    ref, pos = placed.reference(0.1)
+    r = palette.params.ball_radius
+    ref, pos = placed.reference(r)
     d = float(pol.primitive.displacement[0])
     np.testing.assert_allclose(pos[0, :4], [*start, *(0.6 * u)], atol=1e-12)
     np.testing.assert_allclose(placed.end_xy, start + d * u, atol=1e-12)
     np.testing.assert_allclose(pos[-1, :2], start + d * u, atol=1e-12)
     # The reference's ball angles put the ball where the position says (r (θ + φ)).
-    np.testing.assert_allclose(
-        0.1 * (ref.states[:, 0:2] + ref.states[:, 2:4]), pos[:, :2], atol=1e-9
-    )
+    np.testing.assert_allclose(r * (ref.states[:, 0:2] + ref.states[:, 2:4]), pos[:, :2], atol=1e-9)
     # Domains: S is centred on the start state, G on the end at rest.
     np.testing.assert_allclose(placed.start_domain.center, [*start, *(0.6 * u)], atol=1e-12)
     np.testing.assert_allclose(placed.goal_domain.center, [*(start + d * u), 0, 0], atol=1e-12)

@@ -179,6 +179,45 @@ def _count_edges(counts: Any, forward: Any, *args: Any) -> None:
 
 
 @njit(cache=True, nogil=True)
+def _count_rows_edges(rows: Any, *args: Any) -> int:
+    """Total out-degree of the library ``rows`` (from the forward generator)."""
+    (
+        row_type,
+        row_point,
+        nx,
+        ny,
+        pred_ptr,
+        pred_type,
+        succ_ptr,
+        succ_type,
+        off_x,
+        off_y,
+        type_first,
+        lookup,
+    ) = args
+    buf = np.empty(max(succ_type.size, 1), np.int64)
+    total = 0
+    for r in rows:
+        total += _successors_of(
+            r,
+            buf,
+            row_type,
+            row_point,
+            nx,
+            ny,
+            pred_ptr,
+            pred_type,
+            succ_ptr,
+            succ_type,
+            off_x,
+            off_y,
+            type_first,
+            lookup,
+        )
+    return total
+
+
+@njit(cache=True, nogil=True)
 def _fill_edges(indptr: Any, indices: Any, forward: Any, *args: Any) -> None:
     """Column indices of every row's edges (``forward``), or row indices of every
     column's, ascending, from the forward generator. (One loop per direction, each

@@ -700,9 +700,7 @@ class HybridController:
                     return np.asarray(q, dtype=float)
         return here
 
-    def capture_plan(
-        self, x: ArrayLike, tree: PolicyTree | LazyPolicyTree
-    ) -> CapturePlan | None:
+    def capture_plan(self, x: ArrayLike, tree: PolicyTree | LazyPolicyTree) -> CapturePlan | None:
         """The cheapest verified capture (catch, shift, rest trim toward the tree's goal)
         of the model state ``x`` (8,), or None (see :class:`gracenav.capture.Capture`).
         Settled catches are considered when the lean and lean rate (norms over both
@@ -718,9 +716,7 @@ class HybridController:
             def settle(rows: IntArray) -> None:
                 lazy.settle(rows, best=True, budget=_LAZY_RECOVERY_BUDGET)
 
-        return capture.plan(
-            p, lean_deviation=deviation, cost_to_go=tree.cost_to_go, settle=settle
-        )
+        return capture.plan(p, lean_deviation=deviation, cost_to_go=tree.cost_to_go, settle=settle)
 
     def best_policy(self, p: ArrayLike, tree: PolicyTree | LazyPolicyTree) -> int:
         """The policy with the lowest cost-to-go whose S contains ``p`` (−1 if none).

@@ -250,9 +250,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         "sensing_range", ObstacleSensing().range, positive=True, maximum=100.0, unit="m"
     )
     planner = top.sub("planner", {})
-    planner.check_keys(
-        {"kind", "cost", "max_halvings", "resume_from_balancing", "capture", "seed"}
-    )
+    planner.check_keys({"kind", "cost", "max_halvings", "resume_from_balancing", "capture", "seed"})
     planner_kind = planner.choice("kind", PLANNERS, "gracenav")
     cost = planner.choice("cost", ("time", "distance"), "time")
     halvings = planner.integer("max_halvings", 1, maximum=20)
