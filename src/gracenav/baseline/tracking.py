@@ -142,20 +142,23 @@ def track_decoupled(
     x = np.asarray(x0, dtype=float).copy()
     p = position_state(x, r)
     at_goal = bool(np.linalg.norm(p[:2] - goal_xy) <= goal_tolerance)
-    plans = []
-    if not at_goal:  # else the goal is only held
-        plans.append(
-            plan_decoupled(
-                world_map,
-                p[:2],
-                goal_xy,
-                footprint_radius=footprint_radius,
-                limits=limits,
-                start_velocity=p[2:],
-                options=options,
-                dt=dt,
-            )
+
+    def plan_from_here() -> DecoupledPlan:
+        """A plan from the measured position and velocity ``p`` to the goal."""
+        return plan_decoupled(
+            world_map,
+            p[:2],
+            goal_xy,
+            footprint_radius=footprint_radius,
+            limits=limits,
+            start_velocity=p[2:],
+            options=options,
+            dt=dt,
         )
+
+    plans: list[DecoupledPlan] = []
+    if not at_goal:  # else the goal is only held
+        plans.append(plan_from_here())
     record = _Recorder()
     applied: set[int] = set()
     t = 0.0
@@ -208,18 +211,7 @@ def track_decoupled(
         if np.linalg.norm(p[:2] - goal_xy) <= goal_tolerance:
             return False  # too short a path to plan: hold the goal
         try:
-            plans.append(
-                plan_decoupled(
-                    world_map,
-                    p[:2],
-                    goal_xy,
-                    footprint_radius=footprint_radius,
-                    limits=limits,
-                    start_velocity=p[2:],
-                    options=options,
-                    dt=dt,
-                )
-            )
+            plans.append(plan_from_here())
         except PlanningError:
             return False
         log.append(ReplanEvent(t, "tracking_error", plans[-1].seconds, 0, 0))
