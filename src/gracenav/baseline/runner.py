@@ -14,6 +14,7 @@ from gracenav.errors import ConfigError, PlanningError
 from gracenav.params import BallbotParams
 
 if TYPE_CHECKING:
+    from gracenav.execution import Episode
     from gracenav.palette import Palette
     from gracenav.scenarios import Scenario, ScenarioResult
 
@@ -50,12 +51,12 @@ def run_decoupled(
     from gracenav.palette import load_palette
     from gracenav.scenarios import (
         ScenarioResult,
-        _summarise,
+        _run_starts,
         apply_plant_factors,
         check_scenario,
         load_scenario_map,
     )
-    from gracenav.simulate import SimulationOptions, state_from_position
+    from gracenav.simulate import SimulationOptions
 
     if scenario.kind != "point_to_point":
         raise ConfigError(
@@ -82,11 +83,9 @@ def run_decoupled(
             grid_path(world_map, start[:2], goal[:2], scenario.footprint_radius)
         except PlanningError as exc:
             raise PlanningError(f"{scenario.source}: 'task.starts[{i}]': {exc}") from None
-    episodes = []
-    runs = []
-    first_plan = []
-    for i, start in enumerate(scenario.starts):
-        x0 = state_from_position(np.asarray(start), radius)
+    first_plan: list[float] = []  # planning time (s) of each run's first plan
+
+    def run(x0: np.ndarray) -> Episode:
         ep, plans = track_decoupled(
             world_map,
             x0,
@@ -103,14 +102,13 @@ def run_decoupled(
             options=options,
         )
         first_plan.append(plans[0].seconds if plans else 0.0)
-        episodes.append(ep)
-        runs.append(_summarise(ep, start, scenario, world_map, plant_params))
-        if progress is not None:
-            progress(i + 1, len(scenario.starts))
+        return ep
+
+    episodes, runs = _run_starts(scenario, world_map, plant_params, radius, run, progress)
     return ScenarioResult(
         scenario=scenario,
-        episodes=tuple(episodes),
-        runs=tuple(runs),
+        episodes=episodes,
+        runs=runs,
         library_size=0,
         graph_edges=0,
         coverage=float("nan"),
