@@ -262,27 +262,23 @@ def test_cli_publishes_results_as_a_unit(tmp_path: Path) -> None:
 
 
 def test_unreachable_cluster_is_one_line(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     pytest.importorskip("distributed")
     import gracenav.campaign.runner as runner
     from gracenav.cli import main
 
-    runner_timeout = runner.CLUSTER_TIMEOUT_S
-    runner.CLUSTER_TIMEOUT_S = 2.0
-    try:
-        code = main(
-            [
-                "campaign",
-                str(_tiny(tmp_path)),
-                "--out",
-                str(tmp_path / "o"),
-                "--cluster",
-                "tcp://127.0.0.1:1",
-            ]
-        )
-    finally:
-        runner.CLUSTER_TIMEOUT_S = runner_timeout
+    monkeypatch.setattr(runner, "CLUSTER_TIMEOUT_S", 2.0)
+    code = main(
+        [
+            "campaign",
+            str(_tiny(tmp_path)),
+            "--out",
+            str(tmp_path / "o"),
+            "--cluster",
+            "tcp://127.0.0.1:1",
+        ]
+    )
     err = capsys.readouterr().err.strip()
     assert code == 2
     assert "--cluster tcp://127.0.0.1:1: cannot connect to a Dask scheduler" in err

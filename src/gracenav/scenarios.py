@@ -739,7 +739,6 @@ def run_scenario(
     """
     from gracenav.execution import HybridController
     from gracenav.palette import load_palette
-    from gracenav.simulate import state_from_position
 
     palette = palette if palette is not None else load_palette()
     if scenario.planner == "decoupled":
@@ -761,12 +760,10 @@ def run_scenario(
     radius = palette.params.ball_radius  # the controller's: the robot starts where it believes
     probe = HybridController(library, graph, criterion=scenario.cost, params=plant_params)
     _check_task(scenario, probe, options)
-    episodes = []
-    runs = []
-    for i, start in enumerate(scenario.starts):
+
+    def run(x0: np.ndarray) -> Any:
         hc = HybridController(library, graph, criterion=scenario.cost, params=plant_params)
-        x0 = state_from_position(np.asarray(start), radius)
-        ep = hc.run(
+        return hc.run(
             x0,
             scenario.goals,
             loops=scenario.loops,
@@ -774,14 +771,12 @@ def run_scenario(
             options=options,
             moving_obstacles=scenario.moving_obstacles,
         )
-        episodes.append(ep)
-        runs.append(_summarise(ep, start, scenario, world_map, plant_params))
-        if progress is not None:
-            progress(i + 1, len(scenario.starts))
+
+    episodes, runs = _run_starts(scenario, world_map, plant_params, radius, run, progress)
     return ScenarioResult(
         scenario=scenario,
-        episodes=tuple(episodes),
-        runs=tuple(runs),
+        episodes=episodes,
+        runs=runs,
         library_size=len(library),
         graph_edges=graph.num_edges,
         coverage=float(library.coverage),
@@ -790,6 +785,30 @@ def run_scenario(
         library=library,
         plant_params=plant_params,
     )
+
+
+def _run_starts(
+    scenario: Scenario,
+    world_map: Any,
+    plant_params: BallbotParams,
+    radius: float,
+    run: Callable[[np.ndarray], Any],
+    progress: Callable[[int, int], None] | None,
+) -> tuple[tuple[Any, ...], tuple[RunSummary, ...]]:
+    """Run every start of the task with ``run`` (plant state (8,) → Episode), each
+    starting where the controller believes it is (``radius``: its ball radius, m), and
+    summarise the runs on ``world_map`` for ``plant_params``; ``progress`` after each."""
+    from gracenav.simulate import state_from_position
+
+    episodes = []
+    runs = []
+    for i, start in enumerate(scenario.starts):
+        ep = run(state_from_position(np.asarray(start), radius))
+        episodes.append(ep)
+        runs.append(_summarise(ep, start, scenario, world_map, plant_params))
+        if progress is not None:
+            progress(i + 1, len(scenario.starts))
+    return tuple(episodes), tuple(runs)
 
 
 def _execution_options(scenario: Scenario) -> Any:
