@@ -382,17 +382,28 @@ def test_summary_reports_verified_recoveries_and_balancing_time() -> None:
     data = yaml.safe_load((path / "fig5_point_to_point.yaml").read_text())
     data["task"]["starts"] = [[0.0, 2.0, 0.0, 0.0]]
     data["disturbances"] = [{"kind": "push", "time": 2.0, "impulse": [0.0, -15.0]}]
+    # Without catches at the state (planner.capture: false), this push leaves the
+    # robot in no start domain and balancing mode takes over.
+    data["planner"] = {**data.get("planner", {}), "capture": False}
     res = run_scenario(parse_scenario(data))
     run, ep = res.runs[0], res.episodes[0]
     forced = [
         e for e in ep.events if e.reason in (EventReason.DOMAIN_EXIT, EventReason.NOT_IN_GOAL)
     ]
     assert run.verified_recoveries == sum(1 for e in forced if e.to_policy >= 0)
-    assert run.balancing_s >= 1.0  # this push leaves the robot in no start domain
+    assert run.captures == 0
+    assert run.balancing_s >= 1.0
     dt = np.diff(ep.time)
     assert run.balancing_s == pytest.approx(float(np.sum(dt[ep.policy[:-1] == -1])), abs=1e-12)
     d = run.to_dict()
     assert d["verified_recoveries"] == run.verified_recoveries and "balancing_s" in d
+    # With catches (the default) the same push is caught at its state: verified.
+    data["planner"]["capture"] = True
+    res = run_scenario(parse_scenario(data))
+    run, ep = res.runs[0], res.episodes[0]
+    assert run.captures >= 1 and run.captures == run.to_dict()["captures"]
+    assert run.verified_recoveries >= run.captures
+    assert run.balancing_s < 1.0 and run.reached_goal
 
 
 def test_palette_verify_rechecks_regulators_as_built(palette, tmp_path, capsys) -> None:

@@ -30,11 +30,13 @@ is a disc of radius (outer position factor) × (position extent of D(t)).
 from __future__ import annotations
 
 import math
+import os
 import time
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Any
 
+import numba
 import numpy as np
 from numba import njit, prange
 from numpy.typing import ArrayLike, NDArray
@@ -46,6 +48,13 @@ from gracenav.model.indices import PHI, PHI_X_DOT, PHI_Y_DOT
 from gracenav.palette import Palette
 from gracenav.policies import MotionPolicy, PrimitiveKind
 from gracenav.world import WorldMap
+
+# The compiled sweep check runs in parallel. numba's default layer here is GNU OpenMP,
+# which aborts any process that forks after using it (worker pools fork: palette
+# builds, campaigns, benchmarks), so a fork-safe layer is chosen unless the user
+# chose one (environment variable NUMBA_THREADING_LAYER).
+if numba.config.THREADING_LAYER == "default" and "NUMBA_THREADING_LAYER" not in os.environ:
+    numba.config.THREADING_LAYER = "forksafe"
 
 __all__ = [
     "DEFAULT_COVERAGE_SAMPLES",
