@@ -184,6 +184,13 @@ def main() -> None:
     print(
         f"smallest footprint clearance: {min(o.min_clearance for o in results) - FOOTPRINT:+.3f} m"
     )
+    for o in results:
+        if o.contact:
+            print(
+                f"contact: {o.impulse:.1f} N s, {o.status}, clearance "
+                f"{o.min_clearance - FOOTPRINT:+.3f} m, captures {o.captures}, "
+                f"balancing {'yes' if o.balancing else 'no'}"
+            )
 
 
 if __name__ == "__main__":
