@@ -154,12 +154,8 @@ def main() -> None:
             states = sample_states(world, args.samples, FOOTPRINT + margin, rng)
             in_s = lib.start_domain_covers(states)
             est_s = float(np.mean(in_s))
-            caught = np.array(
-                [
-                    bool(c) or capture.plan(x, lean_deviation=(0.0, 0.0)) is not None
-                    for c, x in zip(in_s, states, strict=True)
-                ]
-            )
+            caught = in_s.copy()
+            caught[~in_s] = capture.covers(states[~in_s])
             sub = states[: args.brute]
             brute_s = brute_force_covered(lib, sub)
             brute = brute_s | np.array([capture_checked(lib, x) for x in sub], dtype=bool)

@@ -414,10 +414,16 @@ def test_palette_verify_rechecks_regulators_as_built(palette, tmp_path, capsys) 
     boundary points it was built with, optionally on another plant (--params)."""
     from gracenav.cli import main
 
-    small = dataclasses.replace(palette, policies=(palette["rest"], palette["regulate[ep=0.2m]"]))
+    small = dataclasses.replace(
+        palette,
+        policies=(palette["rest"], palette["regulate[ep=0.2m]"]),
+        catches=tuple(palette.catches[2:4]),  # the 0.1 m/s catches, both lean classes
+        shifts=tuple(palette.shifts[:1]),
+    )
     path = small.save(tmp_path / "small.npz")
     assert main(["palette", "verify", "--file", str(path)]) == 0
-    assert "all 2 policies verified" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "all 2 policies verified" in out and "2 catches and 1 shifts as built" in out
     heavier = tmp_path / "p.yaml"
     heavier.write_text("body_mass: 56.0\n")
     assert main(["palette", "verify", "--file", str(path), "--params", str(heavier)]) == 0
