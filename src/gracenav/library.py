@@ -53,8 +53,9 @@ from gracenav.world import WorldMap
 # which aborts any process that forks after using it (worker pools fork: palette
 # builds, campaigns, benchmarks), so a fork-safe layer is chosen unless the user
 # chose one (environment variable NUMBA_THREADING_LAYER).
-if numba.config.THREADING_LAYER == "default" and "NUMBA_THREADING_LAYER" not in os.environ:
-    numba.config.THREADING_LAYER = "forksafe"
+_numba_config: Any = numba.config
+if _numba_config.THREADING_LAYER == "default" and "NUMBA_THREADING_LAYER" not in os.environ:
+    _numba_config.THREADING_LAYER = "forksafe"
 
 __all__ = [
     "DEFAULT_COVERAGE_SAMPLES",

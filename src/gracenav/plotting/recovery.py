@@ -30,7 +30,7 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 
-_NOT_GRACEFUL_EXITS = ("domain_exit", "not_in_goal", "balancing")
+_NOT_GRACEFUL_EXITS = ("domain_exit", "not_in_goal", "balancing", "capture")
 
 
 @dataclass(frozen=True)
