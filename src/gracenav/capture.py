@@ -279,6 +279,33 @@ def verify_headings(
     )
 
 
+def _fixed_outer_policy(
+    prim: SampledPrimitive,
+    gains: ControllerGains,
+    goal: DomainRadii,
+    scale: float,
+    outer: tuple[float, float],
+    correlation: float,
+    *,
+    label: str = "",
+    outer_cross: float | None = None,
+) -> MotionPolicy:
+    """A policy of S = ``scale`` G whose D' does not shrink (:attr:`MotionPolicy.capture`):
+    position and velocity extents at least ``outer`` (m, m/s) and 1.1 and 3 times S's."""
+    start = DomainRadii(goal.position * scale, goal.velocity * scale)
+    return MotionPolicy(
+        prim,
+        gains,
+        start,
+        goal,
+        (max(1.1, outer[0] / start.position), max(3.0, outer[1] / start.velocity)),
+        correlation,
+        label=label,
+        capture=True,
+        outer_cross=outer_cross,
+    )
+
+
 def catch_policies(
     speed: float,
     gains: ControllerGains,
@@ -301,16 +328,14 @@ def catch_policies(
         if prim is None:
             continue
         for scale in sorted(scales, reverse=True):
-            start = DomainRadii(goal.position * scale, goal.velocity * scale)
-            pol = MotionPolicy(
+            pol = _fixed_outer_policy(
                 prim,
                 gains,
-                start,
                 goal,
-                (max(1.1, along / start.position), max(3.0, fv / start.velocity)),
+                scale,
+                (along, fv),
                 shape.correlation,
                 label=catch_label(speed, cls, scale),
-                capture=True,
                 outer_cross=across if speed > 0 else None,
             )
             report = verify_headings(
@@ -341,16 +366,8 @@ def shift_policies(
         return ()
     prim = replace(prim, name=f"{SHIFT_NAME}_{cell[0]}_{cell[1]}")
     goal = shape.radii(options.goal_position_extent)
-    start = DomainRadii(goal.position * opts.shift_scale, goal.velocity * opts.shift_scale)
-    fp, fv = opts.shift_outer
-    pol = MotionPolicy(
-        prim,
-        gains,
-        start,
-        goal,
-        (max(1.1, fp / start.position), max(3.0, fv / start.velocity)),
-        shape.correlation,
-        capture=True,
+    pol = _fixed_outer_policy(
+        prim, gains, goal, opts.shift_scale, opts.shift_outer, shape.correlation
     )
     report = verify_placements(
         pol, options, push_leans=settled_leans(opts), boundary_points=opts.boundary_points

@@ -127,12 +127,7 @@ class PolicyTree:
             raise PlanningError(
                 f"the goal policy {self.goal} cannot be reached from library policy {i}"
             )
-        path = [int(i)]
-        while path[-1] != self.goal:
-            path.append(int(self.next_policy[path[-1]]))
-            if len(path) > self.next_policy.size:  # pragma: no cover - a tree has no cycles
-                raise PlanningError("corrupt policy tree (cycle)")
-        return path
+        return _follow(self.next_policy, int(i), self.goal)
 
 
 def plan_tree(
@@ -648,6 +643,7 @@ def _gauge_of(dx: FloatArray, dy: FloatArray, h_x: FloatArray, h_y: FloatArray) 
 
 
 def _follow(next_policy: IntArray, i: int, goal: int) -> list[int]:
+    """Rows from ``i`` along ``next_policy`` to ``goal``, both included."""
     path = [i]
     while path[-1] != goal:
         path.append(int(next_policy[path[-1]]))
