@@ -282,6 +282,24 @@ def check_output_dir(path: str | Path, flag: str = "--out") -> Path:
     return path
 
 
+#: The signal (SIGINT or SIGTERM) the command line's handler received, if any. Python
+#: ignores an exception raised while it runs some callbacks (an import lock's, a weak
+#: reference's), so a signal can fail to stop the command; outputs are then still not
+#: published (:meth:`OutputDir.__exit__`) and the command line reports the signal.
+_pending_signal: int | None = None
+
+
+def note_signal(signum: int | None) -> None:
+    """Record (or, with None, clear) the signal that should stop the command."""
+    global _pending_signal
+    _pending_signal = signum
+
+
+def pending_signal() -> int | None:
+    """The signal recorded by :func:`note_signal`, if any."""
+    return _pending_signal
+
+
 class OutputDir:
     """An output directory written as a unit.
 
@@ -427,6 +445,8 @@ class OutputDir:
     def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
         try:
             if exc_type is None:
+                if _pending_signal is not None:  # the signal's exception was swallowed
+                    raise KeyboardInterrupt
                 try:
                     self._publish()
                 except OSError as err:

@@ -16,6 +16,7 @@ import threading
 from collections.abc import Sequence
 from typing import Any, NoReturn
 
+from gracenav._io import note_signal, pending_signal
 from gracenav.errors import GracenavError
 
 __all__ = ["main"]
@@ -57,7 +58,13 @@ class _Terminated(KeyboardInterrupt):
 
 
 def _on_sigterm(signum: int, frame: Any) -> None:
+    note_signal(signum)
     raise _Terminated()
+
+
+def _on_sigint(signum: int, frame: Any) -> None:
+    note_signal(signum)
+    raise KeyboardInterrupt
 
 
 def _one_line(text: str) -> str:
@@ -74,11 +81,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     parser = build_parser()
     args = parser.parse_args(argv)
-    previous = None
+    previous = previous_int = None
+    note_signal(None)
     if threading.current_thread() is threading.main_thread():
         previous = signal.signal(signal.SIGTERM, _on_sigterm)
+        previous_int = signal.signal(signal.SIGINT, _on_sigint)
     try:
         status: int = args.func(args)
+        if pending_signal() is not None:  # its exception was swallowed on the way
+            raise KeyboardInterrupt
     except GracenavError as exc:
         print(f"gracenav: error: {_one_line(str(exc))}", file=sys.stderr)
         return 2
@@ -86,6 +97,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("gracenav: terminated; unfinished outputs discarded", file=sys.stderr)
         return 143
     except KeyboardInterrupt:
+        if pending_signal() == signal.SIGTERM:
+            print("gracenav: terminated; unfinished outputs discarded", file=sys.stderr)
+            return 143
         print("gracenav: interrupted; unfinished outputs discarded", file=sys.stderr)
         return 130
     except BrokenPipeError:  # e.g. `gracenav palette show | head -1`
@@ -107,6 +121,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+        if previous_int is not None:
+            signal.signal(signal.SIGINT, previous_int)
     return status
 
 
