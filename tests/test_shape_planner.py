@@ -11,6 +11,7 @@ from gracenav.errors import ConfigError
 from gracenav.model.ballbot3d import Ballbot3D
 from gracenav.params import BallbotParams
 from gracenav.shape_planner import (
+    BrakeReference,
     NonicReference,
     ShapePlannerOptions,
     ShapePlannerResult,
@@ -62,6 +63,53 @@ def test_nonic_boundary_conditions() -> None:
     r2r = NonicReference.between(3.0, (0, 0), (0, 0), (1.0, 0.0), (0, 0))
     peak = np.max(np.abs(r2r.value(np.linspace(0, 3.0, 30001), 2)[:, 0]))
     assert peak == pytest.approx(9.37 * 1.0 / 9.0, rel=2e-3)
+
+
+def test_brake_reference_closed_forms() -> None:
+    v0 = np.array([0.3, -0.4])  # 0.5 m/s
+    ref = BrakeReference(1.5, v0, 0.3)
+    ends = np.array([0.0, 1.5])
+    # starts at the origin at v0, stops at rest v0 T/2 away (symmetric deceleration)
+    np.testing.assert_allclose(ref.value(ends), [[0.0, 0.0], [0.225, -0.3]], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ref.value(ends, 1), [v0, [0.0, 0.0]], rtol=0, atol=1e-12)
+    for order in (2, 3, 4):  # trims at both ends, as the shape planner requires
+        np.testing.assert_allclose(ref.value(ends, order), 0.0, rtol=0, atol=1e-9)
+    # the deceleration holds its peak |v0|/(T - ramp) between the ramps, never more
+    t = np.linspace(0.0, 1.5, 3001)
+    acc = ref.value(t, 2)
+    along = acc @ v0 / 0.5
+    assert ref.peak_deceleration == pytest.approx(0.5 / 1.2, rel=1e-12)
+    assert np.min(along) == pytest.approx(-0.5 / 1.2, rel=1e-9)
+    np.testing.assert_allclose(along[(t >= 0.3) & (t <= 1.2)], -0.5 / 1.2, rtol=1e-9)
+    np.testing.assert_allclose(acc[:, 0] * v0[1] - acc[:, 1] * v0[0], 0.0, atol=1e-12)  # straight
+    # every derivative is the finite difference of the one below it
+    tt = np.array([0.1, 0.29, 0.7, 1.25, 1.41])
+    for order in range(4):
+        fd = (ref.value(tt + 1e-5, order) - ref.value(tt - 1e-5, order)) / 2e-5
+        np.testing.assert_allclose(fd, ref.value(tt, order + 1), rtol=1e-6, atol=1e-6)
+    # at rest after T
+    np.testing.assert_allclose(ref.value([2.0]), [[0.225, -0.3]], atol=1e-12)
+    np.testing.assert_allclose(ref.value([2.0], 1), 0.0, atol=0)
+    for bad in ((1.0, 0.6), (1.0, 0.0), (float("nan"), 0.2)):
+        with pytest.raises(ConfigError, match="ramp"):
+            BrakeReference(bad[0], v0, bad[1])
+
+
+def test_a_trapezoidal_brake_stops_shorter_than_the_nonic_at_the_same_peak_lean() -> None:
+    # The nonic's deceleration peaks at 35/16 of its mean; the trapezoid's at about 1.
+    # With the same peak deceleration, the trapezoid's T (and stop v T/2) is much shorter.
+    v = 0.8
+    nonic = NonicReference.between(2.5, (0, 0), (v, 0), (v * 2.5 / 2, 0), (0, 0))
+    peak = np.max(np.abs(nonic.value(np.linspace(0, 2.5, 20001), 2)[:, 0]))
+    assert peak == pytest.approx(35 / 16 * v / 2.5, rel=1e-4)
+    ramp = 0.3
+    brake = BrakeReference(v / peak + ramp, np.array([v, 0.0]), ramp)
+    assert brake.peak_deceleration == pytest.approx(peak, rel=1e-12)
+    assert brake.value([brake.duration])[0, 0] < 0.6 * v * 2.5 / 2
+    res = plan_shape_trajectory(BrakeReference(1.25, np.array([v, 0.0]), ramp), PARAMS)
+    assert res.converged
+    end = res.trajectory.sample(np.array([1.25]))
+    np.testing.assert_allclose(end.position[0, :2], [v * 1.25 / 2, 0.0], atol=1e-6)
 
 
 def test_flat_output_constants_match_the_design_values() -> None:

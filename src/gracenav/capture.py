@@ -33,6 +33,7 @@ against the map as instantiation does.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -63,6 +64,7 @@ from gracenav.simulate import DEFAULT_CONTROL_RATE, Reference
 if TYPE_CHECKING:
     from gracenav.library import PolicyLibrary
     from gracenav.params import BallbotParams
+    from gracenav.shape_planner import PositionReference
 
 __all__ = [
     "CATCH_NAME",
@@ -75,7 +77,7 @@ __all__ = [
     "capture_for",
     "catch_label",
     "catch_policies",
-    "catch_primitive",
+    "catch_primitives",
     "reverify",
     "settled_leans",
     "shift_cells",
@@ -95,6 +97,10 @@ SETTLED = "settled"
 _DURATION_STEP = 1.0 / 128.0
 #: A catch is tried for states whose speed is within this of its own (m/s).
 _SPEED_WINDOW = 0.16
+#: Largest arc (m) between the samples of a catch's or shift's swept D' checked for
+#: clearance. Catches act near walls, where the library's coarser step (the map's
+#: resolution, half of it added to every disc) would cost the clearance they need.
+_SWEEP_STEP = 0.01
 
 
 def catch_label(speed: float, lean_class: str, scale: float) -> str:
@@ -131,43 +137,42 @@ def _rest_primitive(name: str, duration: float) -> SampledPrimitive:
 
 
 def _plan_to_rest(
-    offset: FloatArray,
+    reference_of: Callable[[float], PositionReference],
     velocity: FloatArray,
-    duration_of: Callable[[float], tuple[float, FloatArray]],
     options: CatchOptions,
+    torque_limit: float,
     gains: ControllerGains,
     name: str,
+    *,
+    min_duration: float | None = None,
 ) -> SampledPrimitive | None:
-    """The shortest duration T (on a 1/16 s then 1/128 s grid) whose nonic from
-    (0, velocity) to (offset(T), 0) the shape planner makes feasible within the lean
-    and torque limits; ``duration_of(T)`` gives (T, end offset)."""
+    """The shortest duration T (on a 1/16 s then 1/128 s grid, from ``min_duration``,
+    default ``options.min_duration``) whose reference ``reference_of(T)`` (from (0,
+    ``velocity``) to rest) the shape planner makes feasible within ``options.max_lean``
+    and ``torque_limit``, sampled with the rest tail."""
     from gracenav.braking import sampled_with_rest_tail
-    from gracenav.shape_planner import NonicReference, plan_shape_trajectory
+    from gracenav.shape_planner import plan_shape_trajectory
 
     params = gains.params
+    t_min = options.min_duration if min_duration is None else min_duration
 
     def feasible(t: float) -> object | None:
-        dur, end = duration_of(t)
-        ref = NonicReference.between(dur, np.zeros(2), velocity, end, np.zeros(2))
+        ref = reference_of(t)
         # Too short a T diverges; the result is then rejected, not a user's concern.
         with np.errstate(over="ignore", invalid="ignore"):
             res = plan_shape_trajectory(ref, params, model="3d")
-        ok = (
-            res.converged
-            and res.peak_lean <= options.max_lean
-            and res.peak_torque <= params.torque_limit
-        )
+        ok = res.converged and res.peak_lean <= options.max_lean and res.peak_torque <= torque_limit
         return res if ok else None
 
     coarse = 1.0 / 16.0
-    t = options.min_duration
+    t = math.ceil(t_min / _DURATION_STEP - 1e-9) * _DURATION_STEP
     while t <= options.max_duration + 1e-9:
         if feasible(t) is not None:
             break
         t += coarse
     else:
         return None
-    lo, hi = max(options.min_duration, t - coarse), t  # feasible at hi
+    lo, hi = max(t_min, t - coarse), t  # feasible at hi
     while hi - lo > _DURATION_STEP + 1e-12:
         mid = math.ceil((lo + hi) / 2 / _DURATION_STEP - 1e-9) * _DURATION_STEP
         if mid >= hi:
@@ -178,36 +183,77 @@ def _plan_to_rest(
             lo = mid
     res = feasible(hi)
     assert res is not None
-    dur, _ = duration_of(hi)
     return sampled_with_rest_tail(
         res,  # type: ignore[arg-type]
-        dur,
+        hi,
         options.tail,
         name=name,
         start_velocity=velocity,
     )
 
 
-def catch_primitive(
+def _brake_reference(duration: float, *, velocity: FloatArray, ramp: float) -> PositionReference:
+    from gracenav.shape_planner import BrakeReference
+
+    return BrakeReference(duration, velocity, ramp)
+
+
+def _reach_ahead(prim: SampledPrimitive) -> float:
+    """How far ahead of its start (m, along its initial velocity) a catch's path goes."""
+    return float(np.max(prim.position[:, 0]))
+
+
+def catch_primitives(
     speed: float, options: CatchOptions, gains: ControllerGains, *, lean_class: str = PUSHED
-) -> SampledPrimitive | None:
-    """The catch from ``speed`` (m/s) along +x: the C⁴ smooth-step deceleration (the
-    nonic from (0, v) to (v T/2, 0)) of the shortest T feasible with the class's lean
-    (``max_lean`` or ``settled_max_lean``), then the rest tail; at speed 0 a rest hold
-    of the tail's duration. None if no T <= ``max_duration`` is feasible."""
+) -> list[SampledPrimitive]:
+    """The candidate catches from ``speed`` (m/s) along +x to rest, each followed by the
+    rest tail, ordered by how far ahead their path reaches (ties: shorter first).
+
+    The candidates are the C⁴ nonic smooth step (the nonic from (0, v) to (v T/2, 0))
+    and one smooth trapezoidal deceleration
+    (:class:`~gracenav.shape_planner.BrakeReference`) per ramp of ``options.ramps`` and
+    torque share of the class, each of the shortest T feasible with the class's lean
+    (``max_lean`` or ``settled_max_lean``) and torque (the share of the limit; the
+    whole limit for the nonic). Both stop
+    v T/2 from their start. At speed 0, the rest hold of the tail's duration. Empty if
+    nothing is feasible within ``max_duration``.
+    """
+    from gracenav.shape_planner import NonicReference
+
     name = f"{CATCH_NAME}_{speed:g}_{lean_class}"
     if speed == 0.0:
-        return _rest_primitive(name, options.tail)
+        return [_rest_primitive(name, options.tail)]
     v = np.array([speed, 0.0])
     lean = options.max_lean if lean_class == PUSHED else options.settled_max_lean
-    return _plan_to_rest(
-        np.zeros(2),
-        v,
-        lambda t: (t, np.array([speed * t / 2.0, 0.0])),
-        replace(options, max_lean=lean),
-        gains,
-        name,
-    )
+    opts = replace(options, max_lean=lean)
+    limit = gains.params.torque_limit
+    shares = options.pushed_torque_shares if lean_class == PUSHED else options.settled_torque_shares
+    zero = np.zeros(2)
+    found = [
+        _plan_to_rest(
+            lambda t: NonicReference.between(t, zero, v, np.array([speed * t / 2.0, 0.0]), zero),
+            v,
+            opts,
+            limit,
+            gains,
+            name,
+        )
+    ]
+    for share in shares:
+        for ramp in options.ramps:
+            found.append(
+                _plan_to_rest(
+                    functools.partial(_brake_reference, velocity=v, ramp=ramp),
+                    v,
+                    opts,
+                    share * limit,
+                    gains,
+                    f"{name}_ramp{ramp:g}_torque{share:g}",
+                    min_duration=max(options.min_duration, 2.0 * ramp),
+                )
+            )
+    got = [p for p in found if p is not None]
+    return sorted(got, key=lambda p: (round(_reach_ahead(p), 9), p.duration))
 
 
 def shift_primitive(
@@ -215,15 +261,18 @@ def shift_primitive(
 ) -> SampledPrimitive | None:
     """The rest-to-rest shift by ``offset`` (m) of the shortest feasible duration (at
     least 1 s), then the rest tail."""
+    from gracenav.shape_planner import NonicReference
+
     off = np.asarray(offset, dtype=float)
-    quick = replace(options, min_duration=max(1.0, options.min_duration))
+    zero = np.zeros(2)
     return _plan_to_rest(
-        off,
-        np.zeros(2),
-        lambda t: (t, off),
-        quick,
+        lambda t: NonicReference.between(t, zero, zero, off, zero),
+        zero,
+        options,
+        gains.params.torque_limit,
         gains,
         f"{SHIFT_NAME}_{off[0]:.4g}_{off[1]:.4g}",
+        min_duration=max(1.0, options.min_duration),
     )
 
 
@@ -312,10 +361,14 @@ def catch_policies(
     options: VerificationOptions,
     shape: DomainShape,
     push_leans: PushLeanTable,
+    *,
+    classes: tuple[str, ...] = (PUSHED, SETTLED),
 ) -> tuple[MotionPolicy, ...]:
-    """The catches from ``speed``: for each lean class, the largest size of
-    ``options.catch.scales`` that verifies, preceded by the larger sizes that failed
-    (reports attached). Empty if the braking cannot be planned."""
+    """The catches from ``speed``: for each lean class of ``classes``, the first of its
+    sizes (``options.catch.scales``, largest first) and candidate paths
+    (:func:`catch_primitives`, shortest reach first, at most ``max_candidates`` per
+    size) that verifies, preceded by the candidates that failed (reports attached).
+    Empty if the braking cannot be planned."""
     opts = options.catch
     assert opts is not None
     goal = shape.radii(options.goal_position_extent)
@@ -324,25 +377,34 @@ def catch_policies(
         (PUSHED, opts.pushed_outer, push_leans, opts.scales),
         (SETTLED, opts.settled_outer, settled_leans(opts), opts.settled_scales),
     ):
-        prim = catch_primitive(speed, opts, gains, lean_class=cls)
-        if prim is None:
+        if cls not in classes:
             continue
+        prims = catch_primitives(speed, opts, gains, lean_class=cls)[: opts.max_candidates]
+        done = False
         for scale in sorted(scales, reverse=True):
-            pol = _fixed_outer_policy(
-                prim,
-                gains,
-                goal,
-                scale,
-                (along, fv),
-                shape.correlation,
-                label=catch_label(speed, cls, scale),
-                outer_cross=across if speed > 0 else None,
-            )
-            report = verify_headings(
-                pol, options, opts.headings, push_leans=leans, boundary_points=opts.boundary_points
-            )
-            out.append(replace(pol, report=report))
-            if report.passed:
+            for prim in prims:
+                pol = _fixed_outer_policy(
+                    prim,
+                    gains,
+                    goal,
+                    scale,
+                    (along, fv),
+                    shape.correlation,
+                    label=catch_label(speed, cls, scale),
+                    outer_cross=across if speed > 0 else None,
+                )
+                report = verify_headings(
+                    pol,
+                    options,
+                    opts.headings,
+                    push_leans=leans,
+                    boundary_points=opts.boundary_points,
+                )
+                out.append(replace(pol, report=report))
+                if report.passed:
+                    done = True
+                    break
+            if done:
                 break
     return tuple(out)
 
@@ -591,7 +653,7 @@ class Capture:
         self.options = opts
         self.grid = palette.d / (opts.grid_divisions if opts is not None else 1)
         self.origin = np.asarray(library.origin, dtype=float)
-        step = float(library.sweep_step)
+        step = min(float(library.sweep_step), _SWEEP_STEP)
         members = []
         for pol in palette.catches:
             path, reach = _sweep_of(pol, step)

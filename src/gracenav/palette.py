@@ -69,7 +69,7 @@ REGULATOR_NAME = "regulate"
 #: rebuilt exactly enough (see SampledPrimitive.from_coarse) when loaded.
 COARSE_STRIDE = 8
 #: Bumped whenever the planner, controller or verification code changes results.
-ALGORITHM_VERSION = "4"
+ALGORITHM_VERSION = "5"
 #: Largest relative difference (see ControllerGains.relative_difference) between a
 #: palette's stored gains and the gains requested of it that still counts as the
 #: same design. Rebuilding the gains on another numpy/scipy build changes them by
@@ -740,16 +740,17 @@ def _shift_cells(options: CatchOptions, d: float) -> list[tuple[int, int]]:
 
 
 def _catch_one(
-    args: tuple[float, ControllerGains, VerificationOptions, DomainShape],
+    args: tuple[float, tuple[str, ...], ControllerGains, VerificationOptions, DomainShape],
 ) -> tuple[MotionPolicy, ...]:
-    """The catches from one speed (see :func:`gracenav.capture.catch_policies`)."""
+    """The catches of some lean classes from one speed (see
+    :func:`gracenav.capture.catch_policies`)."""
     from gracenav.capture import catch_policies
     from gracenav.policies import RegulatorOptions, push_lean_table
 
-    speed, gains, options, shape = args
+    speed, classes, gains, options, shape = args
     pushes = options.regulator or RegulatorOptions()  # the regulators' push table
     push_leans = push_lean_table(gains, pushes.push_impulses, pushes.push_times)
-    return catch_policies(speed, gains, options, shape, push_leans)
+    return catch_policies(speed, gains, options, shape, push_leans, classes=classes)
 
 
 def _shift_one(
@@ -815,6 +816,7 @@ def build_palette(
     Palette
     """
     from gracenav._progress import Progress
+    from gracenav.capture import PUSHED, SETTLED
     from gracenav.policies import domain_shape
 
     params = params if params is not None else BallbotParams()
@@ -841,7 +843,12 @@ def build_palette(
         ]
     )
     cat = options.catch
-    catch_jobs = [] if cat is None else [(v, gains, options, shape) for v in cat.speeds]
+    catch_jobs = (
+        []
+        if cat is None
+        else [(v, (PUSHED, SETTLED), gains, options, shape) for v in cat.speeds]
+        + [(v, (SETTLED,), gains, options, shape) for v in cat.settled_speeds]
+    )
     shift_jobs = (
         [] if cat is None else [(c, d, gains, options, shape) for c in _shift_cells(cat, d)]
     )

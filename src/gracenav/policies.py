@@ -588,11 +588,26 @@ class CatchOptions:
     Parameters
     ----------
     speeds : tuple of float
-        Speeds (m/s) of the catches, ascending; 0 is a rest hold.
+        Speeds (m/s) of the catches of both lean classes, ascending; 0 is a rest hold.
+    settled_speeds : tuple of float
+        Further speeds (m/s) with a settled catch only: the settled class acts near
+        walls, where a catch planned for a speed closer to the state's stops shorter.
     max_lean : float
         Largest planned body tilt of a catch or shift (rad).
     min_duration, max_duration : float
         Bounds of a catch's deceleration time (s).
+    ramps : tuple of float
+        Rise times (s) of the smooth trapezoidal decelerations
+        (:class:`~gracenav.shape_planner.BrakeReference`) planned for each catch
+        besides the nonic smooth step; the candidates are verified in the order of how
+        far ahead their path reaches, and the first that verifies is kept.
+    pushed_torque_shares, settled_torque_shares : tuple of float
+        Largest planned torques of a class's trapezoidal catches, as shares of the
+        torque limit (one candidate per ramp and share): the rest is left to the
+        feedback (a short ramp otherwise saturates the motor once a push's lean is
+        corrected).
+    max_candidates : int
+        Candidates verified per size, shortest reach first.
     tail : float
         Rest held after a catch's deceleration and after a shift (s).
     scales : tuple of float
@@ -631,9 +646,14 @@ class CatchOptions:
     """
 
     speeds: tuple[float, ...] = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1)
+    settled_speeds: tuple[float, ...] = (0.05, 0.15, 0.25, 0.35, 0.45, 0.55, 0.65, 0.75)
     max_lean: float = math.radians(4.5)
     min_duration: float = 0.5
     max_duration: float = 6.0
+    ramps: tuple[float, ...] = (0.2, 0.3, 0.45, 0.6, 0.8, 1.0)
+    pushed_torque_shares: tuple[float, ...] = (0.75, 0.65)
+    settled_torque_shares: tuple[float, ...] = (0.8,)
+    max_candidates: int = 4
     tail: float = 1.0
     scales: tuple[float, ...] = (1.5, 1.0)
     settled_scales: tuple[float, ...] = (1.0,)
@@ -646,11 +666,15 @@ class CatchOptions:
     settled_lean: tuple[float, float] = (math.radians(0.5), math.radians(3.0))
     shift_radius: float = 0.375
     shift_scale: float = 1.25
-    shift_outer: tuple[float, float] = (0.12, 0.5)
+    shift_outer: tuple[float, float] = (0.10, 0.5)
 
     def __post_init__(self) -> None:
         for name in (
             "speeds",
+            "settled_speeds",
+            "ramps",
+            "pushed_torque_shares",
+            "settled_torque_shares",
             "scales",
             "settled_scales",
             "pushed_outer",
@@ -661,6 +685,15 @@ class CatchOptions:
             object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
         if not self.speeds or any(v < 0 for v in self.speeds):
             raise ConfigError(f"catch speeds must be >= 0, got {self.speeds}")
+        if any(r <= 0 for r in self.ramps):
+            raise ConfigError(f"catch ramps must be > 0 s, got {self.ramps}")
+        for shares in (self.pushed_torque_shares, self.settled_torque_shares):
+            if not all(0 < f <= 1 for f in shares):
+                raise ConfigError(f"catch torque shares must be in (0, 1], got {shares}")
+        if any(v <= 0 for v in self.settled_speeds):
+            raise ConfigError(f"catch settled_speeds must be > 0, got {self.settled_speeds}")
+        if self.max_candidates < 1:
+            raise ConfigError(f"catch max_candidates must be >= 1, got {self.max_candidates}")
         for scales in (self.scales, self.settled_scales):
             if not scales or any(s < 1 for s in scales):
                 raise ConfigError(f"catch scales must be >= 1 (S ⊇ G), got {scales}")

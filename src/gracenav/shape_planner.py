@@ -53,7 +53,7 @@ from typing import Literal, Protocol
 import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
-from scipy.interpolate import BSpline
+from scipy.interpolate import BSpline, PPoly
 
 from gracenav._kernels import bias as _bias3
 from gracenav._kernels import mass_matrix as _mm3
@@ -165,6 +165,77 @@ class NonicReference:
         for k in range(c.shape[0] - 1, -1, -1):
             out = out * s[:, None] + c[k]
         return np.asarray(out / self.duration**order, dtype=np.float64)
+
+
+#: The septic smooth step 35s⁴ − 84s⁵ + 70s⁶ − 20s⁷ on [0, 1]: rises from 0 to 1 with
+#: its first three derivatives zero at both ends; its integral over [0, 1] is 1/2.
+_SEPTIC_STEP = (0.0, 0.0, 0.0, 0.0, 35.0, -84.0, 70.0, -20.0)
+
+
+@dataclass(frozen=True)
+class BrakeReference:
+    """Braking from a velocity to rest along a straight line with a smooth trapezoidal
+    deceleration: it rises to its peak over ``ramp`` s (a septic smooth step, so the
+    jerk and snap are zero at both ends), holds it, and falls back over ``ramp`` s.
+
+    For the same peak deceleration a_max this stops in T = v₀/a_max + ramp, where the
+    nonic to rest (:class:`NonicReference`) needs T = 35/16 v₀/a_max: the
+    distance, v₀ T/2 in both cases, is much shorter when the peak lean (≈ a_max/g) is
+    what limits it. The deceleration profile is symmetric about T/2, so the reference
+    stops at ``velocity`` × T/2 from its start.
+
+    Parameters
+    ----------
+    duration : float
+        T (s), at least 2 ``ramp``.
+    velocity : ndarray, shape (2,)
+        Initial velocity v₀ (m/s); the reference starts at the origin.
+    ramp : float
+        Rise (and fall) time of the deceleration (s), positive.
+    """
+
+    duration: float
+    velocity: FloatArray
+    ramp: float
+    _position: PPoly = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        t, r = float(self.duration), float(self.ramp)
+        if not (math.isfinite(t) and math.isfinite(r) and r > 0 and t >= 2.0 * r):
+            raise ConfigError(
+                f"a brake reference needs 0 < ramp <= duration/2, got ramp {r!r} s and "
+                f"duration {t!r} s"
+            )
+        v = np.asarray(self.velocity, dtype=float).reshape(2)
+        v.setflags(write=False)
+        object.__setattr__(self, "velocity", v)
+        step = np.polynomial.Polynomial(_SEPTIC_STEP)
+        rise = step(np.polynomial.Polynomial([0.0, 1.0 / r])).coef  # in t − 0
+        fall = step(np.polynomial.Polynomial([1.0, -1.0 / r])).coef  # in t − (T − r)
+        coef = np.zeros((8, 3))
+        coef[8 - rise.size :, 0] = rise[::-1]
+        coef[-1, 1] = 1.0
+        coef[8 - fall.size :, 2] = fall[::-1]
+        # Unit speed along the motion: deceleration 1/(T − r) at its peak.
+        accel = PPoly(-coef / (t - r), np.array([0.0, r, t - r, t]))
+        speed = accel.antiderivative(1)
+        speed.c[-1] += 1.0  # piecewise constants of a continuous antiderivative
+        object.__setattr__(self, "_position", speed.antiderivative(1))
+
+    @property
+    def peak_deceleration(self) -> float:
+        """a_max = |v₀|/(T − ramp) (m/s²)."""
+        return float(np.hypot(*self.velocity) / (self.duration - self.ramp))
+
+    def value(self, t: ArrayLike, order: int = 0) -> FloatArray:
+        """Derivative ``order`` at times ``t`` (s), shape (N, 2) (m/s^order); constant
+        (at rest) after T."""
+        s = np.clip(np.atleast_1d(np.asarray(t, dtype=float)), 0.0, self.duration)
+        f = self._position.derivative(order) if order > 0 else self._position
+        out = f(s)
+        if order > 0:
+            out = np.where(np.atleast_1d(np.asarray(t, dtype=float)) > self.duration, 0.0, out)
+        return np.asarray(out[:, None] * self.velocity[None, :], dtype=np.float64)
 
 
 # --------------------------------------------------------------------------------------
