@@ -108,3 +108,34 @@ def test_plot_recovery_command_errors(tmp_path, capsys) -> None:  # type: ignore
         f"gracenav: error: --run 2: {fig7} has 1 start(s); use --run 1\n"
     )
     assert not out.exists()
+
+
+def test_catches_placed_at_the_state_are_drawn_with_their_domains(pushed) -> None:  # type: ignore[no-untyped-def]
+    """The 15 N s push leaves every library S; a catch placed at the state takes over
+    (verified S containing the state), and the figure draws its S and D'(t)."""
+    ep = pushed.episodes[0]
+    assert ep.captures and ep.reached_goal
+    when, plan = ep.captures[0]
+    tick = next(e.tick for e in ep.events if e.reason.value == "capture")
+    assert ep.time[tick] == pytest.approx(when, abs=1e-12)
+    # In the controller's coordinates (nominal radius: the plant's here) the state at
+    # the capture lies in the catch's S, and the catch's G in the shift's S if any.
+    assert plan.catch.start_domain.contains(ep.position_state[tick])
+    data = recovery_data(pushed)
+    assert data.window[0] <= when <= data.window[1]
+    assert len(data.catch_start_domains) == len(plan.policies)
+    for placed, outline in zip(plan.policies, data.catch_start_domains, strict=True):
+        s = placed.start_domain
+        d = outline - np.asarray(s.center)[:2]
+        np.testing.assert_allclose(
+            np.einsum("ni,ij,nj->n", d, s.xy_projection(), d), 1.0, rtol=1e-9
+        )
+    # D'(t) every 0.25 s and at the end of each placed policy.
+    expected = sum(
+        len({*range(0, p.primitive.num_ticks + 1, 256), p.primitive.num_ticks})
+        for p in plan.policies
+    )
+    assert len(data.catch_outer_domains) == expected
+    # The swept D' the figure draws stays clear of the obstacles by the footprint.
+    pts = np.concatenate(data.catch_outer_domains)
+    assert np.min(pushed.world_map.clearance(pts)) >= pushed.library.footprint_radius - 1e-9

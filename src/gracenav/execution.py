@@ -218,6 +218,9 @@ class Episode:
         obstacles blocked every way to the goal.
     moving_obstacles : tuple of MovingObstacle
         The run's moving obstacles (their true motion), for checks and drawings.
+    captures : tuple of (float, CapturePlan)
+        Time and plan (placed catch and shift, rest trim) of every capture started
+        (:data:`CAPTURE` in :attr:`policy`), for checks and drawings.
     """
 
     time: FloatArray
@@ -233,6 +236,7 @@ class Episode:
     replans: tuple[ReplanEvent, ...] = ()
     blocked_time: float = 0.0
     moving_obstacles: tuple[MovingObstacle, ...] = ()
+    captures: tuple[tuple[float, CapturePlan], ...] = ()
 
     @property
     def position_state(self) -> FloatArray:
@@ -843,6 +847,7 @@ class HybridController:
         status = TaskStatus.TIMEOUT
         offset = 0  # ticks of the current policy already run (moving obstacles)
         captured: list[PlacedPolicy] = []  # placed catch and shift still to run
+        capture_plans: list[tuple[float, CapturePlan]] = []
         capture_row = -1  # the rest trim a capture ends on
         while ticks < max_ticks:
             term = terminal_seq[k_goal]
@@ -1032,6 +1037,7 @@ class HybridController:
                 plan = self.capture_plan(x, tree)
                 if plan is not None:
                     events.append(SwitchEvent(t, current, CAPTURE, EventReason.CAPTURE, ticks))
+                    capture_plans.append((t, plan))
                     captured, capture_row = list(plan.policies), plan.rest_row
                     current, offset = CAPTURE, 0
                     continue
@@ -1117,4 +1123,5 @@ class HybridController:
             replans=tuple(dyn.replans) if dyn is not None else (),
             blocked_time=blocked_time,
             moving_obstacles=tuple(moving_obstacles),
+            captures=tuple(capture_plans),
         )

@@ -320,8 +320,8 @@ def _run_on_cluster(
             fut = client.submit(run_trial, campaign, i, p, params, key=key, pure=False)
             keys[fut.key] = (p, i)
             futures.append(fut)
-        for fut in dask_completed(futures):
-            row = fut.result()
+        # Results come with the completions, gathered on the client's own event loop.
+        for fut, row in dask_completed(futures, with_results=True):
             losses = client.run_on_scheduler(_task_losses, key=fut.key)
             row["worker_losses"] = int(losses)
             fut.release()

@@ -16,6 +16,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from gracenav.domains import EllipsoidalDomain
 from gracenav.plotting.navigation import _plt, draw_map
 from gracenav.simulate import Drag, Push
 
@@ -31,6 +32,8 @@ __all__ = [
 FloatArray = NDArray[np.float64]
 
 _NOT_GRACEFUL_EXITS = ("domain_exit", "not_in_goal", "balancing", "capture")
+#: D'(t) of a catch or shift is drawn every this many seconds (and at its end).
+CATCH_OUTER_EVERY = 0.25
 
 
 @dataclass(frozen=True)
@@ -130,6 +133,13 @@ class RecoveryData:
         Length of a push arrow per unit impulse (m / (N s)).
     path : ndarray, shape (N, 2)
         The ball's XY path (m), where the plant truly is.
+    catch_start_domains : tuple of ndarray, shape (n, 2)
+        XY outlines of the start domains S of the catches and shifts placed at the
+        robot's state (:mod:`gracenav.capture`) and started in ``window`` (m).
+    catch_outer_domains : tuple of ndarray, shape (n, 2)
+        XY outlines of their outer domains D'(t) every :data:`CATCH_OUTER_EVERY` s and
+        at their last tick (m): together they draw the swept D' that was checked
+        against the map.
     """
 
     run: int
@@ -141,6 +151,28 @@ class RecoveryData:
     switches: tuple[SwitchMarker, ...]
     impulse_scale: float
     path: FloatArray
+    catch_start_domains: tuple[FloatArray, ...] = ()
+    catch_outer_domains: tuple[FloatArray, ...] = ()
+
+
+def _catch_outlines(ep: Any, t0: float, t1: float) -> tuple[list[FloatArray], list[FloatArray]]:
+    """Outlines of S and of D'(t) (every CATCH_OUTER_EVERY s) of the placed catches and
+    shifts of the captures started in [t0, t1]."""
+    starts: list[FloatArray] = []
+    outers: list[FloatArray] = []
+    for when, plan in getattr(ep, "captures", ()):
+        if not t0 - 1e-9 <= when <= t1 + 1e-9:
+            continue
+        for placed in plan.policies:
+            s = placed.start_domain
+            starts.append(_ellipse_xy(s.xy_projection(), np.asarray(s.center, dtype=float)))
+            centres, shapes = placed.outer_monitor()
+            step = max(1, round(CATCH_OUTER_EVERY / placed.primitive.dt))
+            ticks = sorted({*range(0, centres.shape[0], step), centres.shape[0] - 1})
+            for k in ticks:
+                d = EllipsoidalDomain(centres[k], 0.5 * (shapes[k] + shapes[k].T))
+                outers.append(_ellipse_xy(d.xy_projection(), centres[k], n=61))
+    return starts, outers
 
 
 def _ellipse_xy(shape_xy: FloatArray, center: FloatArray, n: int = 121) -> FloatArray:
@@ -268,6 +300,7 @@ def recovery_data(result: Any, run: int = 0, *, arrow_length: float | None = Non
         for e in ep.events
         if e.reason.value != "start"
     )
+    catch_starts, catch_outers = _catch_outlines(ep, t0, t1)
     return RecoveryData(
         run=run,
         window=(t0, t1),
@@ -278,6 +311,8 @@ def recovery_data(result: Any, run: int = 0, *, arrow_length: float | None = Non
         switches=switches,
         impulse_scale=scale,
         path=p[:, :2].copy(),
+        catch_start_domains=tuple(catch_starts),
+        catch_outer_domains=tuple(catch_outers),
     )
 
 
@@ -297,9 +332,11 @@ def plot_recovery(
     proportional to the impulse, labelled in N s) and each drag as the hand's
     displacement, the start domains S of the policies executed from the disturbance
     until the motion is graceful again, D'(t) where the state left it (dotted), and the
-    switches: graceful (dots) and forced (red crosses). Paths and markers are where the
-    plant truly is; domains are in the controller's coordinates (the two differ by the
-    ratio of the ball radii when the plant's is not the palette's).
+    switches: graceful (dots) and forced (red crosses). A catch or shift placed at the
+    robot's state is drawn with its S (green) and its D'(t) every 0.25 s (light
+    green). Paths and markers are where the plant truly is; domains are in the
+    controller's coordinates (the two differ by the ratio of the ball radii when the
+    plant's is not the palette's).
 
     Parameters
     ----------
@@ -333,6 +370,26 @@ def plot_recovery(
             alpha=0.6,
             zorder=2,
             label="start domains S" if k == 0 else None,
+        )
+    for k, outline in enumerate(data.catch_outer_domains):
+        ax.plot(
+            outline[:, 0],
+            outline[:, 1],
+            color="tab:green",
+            lw=0.6,
+            alpha=0.35,
+            zorder=2,
+            label="D'(t) of a catch or shift" if k == 0 else None,
+        )
+    for k, outline in enumerate(data.catch_start_domains):
+        ax.fill(outline[:, 0], outline[:, 1], color="tab:green", alpha=0.25, lw=0, zorder=2)
+        ax.plot(
+            outline[:, 0],
+            outline[:, 1],
+            color="tab:green",
+            lw=1.2,
+            zorder=3,
+            label="S of a catch or shift" if k == 0 else None,
         )
     for k, ex in enumerate(data.exits):
         ax.plot(
