@@ -30,7 +30,7 @@ from gracenav.graph import PreparesGraph
 from gracenav.library import PolicyLibrary, quarter_turn
 from gracenav.params import BallbotParams
 from gracenav.planning import CostCriterion, LazyPolicyTree, PolicyTree, plan_tree
-from gracenav.policies import MotionPolicy, PrimitiveKind, instantiated_reference
+from gracenav.policies import PrimitiveKind, instantiated_reference
 from gracenav.replanning import HOLD_MARGIN, ObstacleSensing, ObstacleTracker, ReplanEvent
 from gracenav.simulate import (
     BodyForce,
@@ -335,41 +335,27 @@ CAPTURE = -4
 
 
 @dataclass(frozen=True)
-class TerminalPolicy:
-    """A capture regulator of the palette instantiated at a goal off the lattice.
+class TerminalPolicy(PlacedPolicy):
+    """A capture regulator of the palette placed at a goal off the lattice: a
+    :class:`~gracenav.capture.PlacedPolicy` at heading 0 whose reference starts (and
+    holds) at the goal.
 
     Attributes
     ----------
-    policy : MotionPolicy
-        The palette's capture regulator (rest reference, its own S, fixed D').
-    goal_xy : ndarray, shape (2,)
-        Where it holds the robot (m).
     approach : int
         The library rest trim the task reaches first; its G lies in this S.
     """
 
-    policy: MotionPolicy
-    goal_xy: NDArray[np.float64]
-    approach: int
-
-    def _at_goal(self, local: EllipsoidalDomain) -> EllipsoidalDomain:
-        c = np.array(local.center, dtype=float)
-        c[:2] += self.goal_xy
-        return EllipsoidalDomain(c, local.shape_matrix)
+    approach: int = -1
 
     @property
-    def start_domain(self) -> EllipsoidalDomain:
-        """S in the world frame."""
-        return self._at_goal(self.policy.start_domain)
-
-    @property
-    def goal_domain(self) -> EllipsoidalDomain:
-        """G in the world frame."""
-        return self._at_goal(self.policy.goal_domain)
+    def goal_xy(self) -> NDArray[np.float64]:
+        """Where it holds the robot (m)."""
+        return self.start_xy
 
     def outer_domain(self, t: float) -> EllipsoidalDomain:
         """D'(t) in the world frame."""
-        return self._at_goal(self.policy.outer_domain(t))
+        return self._world(self.policy.outer_domain(t))
 
     @property
     def name(self) -> str:
@@ -615,7 +601,7 @@ class HybridController:
             near = np.flatnonzero(dist <= reg.start_radii.position)
             near = near[np.lexsort((lib.durations[rest[near]], dist[near]))]
             for i in rest[near]:
-                term = TerminalPolicy(reg, g[:2].copy(), int(i))
+                term = TerminalPolicy(reg, 0.0, g[:2].copy(), int(i))
                 if term.start_domain.contains_domain(lib.policy(int(i)).goal_domain):
                     out.append(term)
             if out:
@@ -851,16 +837,12 @@ class HybridController:
         capture_row = -1  # the rest trim a capture ends on
         while ticks < max_ticks:
             term = terminal_seq[k_goal]
-            if current == CAPTURE:
-                placed = captured[0]
+            if current == CAPTURE or (current == TERMINAL and term is not None):
+                placed = captured[0] if current == CAPTURE else term
+                assert placed is not None
                 prim = placed.primitive
                 ref, ref_pos = placed.reference(r)
                 _, shapes = placed.outer_monitor()
-                is_goal = False
-            elif current == TERMINAL and term is not None:
-                prim = term.policy.primitive
-                ref, ref_pos = instantiated_reference(prim, 0, term.goal_xy, r)
-                _, shapes = term.policy.outer_monitor()
                 is_goal = False
             else:
                 inst = self.library.policy(current)
