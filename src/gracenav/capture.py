@@ -100,7 +100,9 @@ _SPEED_WINDOW = 0.16
 #: Largest arc (m) between the samples of a catch's or shift's swept D' checked for
 #: clearance. Catches act near walls, where the library's coarser step (the map's
 #: resolution, half of it added to every disc) would cost the clearance they need.
-_SWEEP_STEP = 0.01
+_SWEEP_STEP = 0.004
+#: Grid points whose ways onto a rest trim are remembered (then forgotten at once).
+_HANDOVER_CACHE = 100_000
 
 
 def catch_label(speed: float, lean_class: str, scale: float) -> str:
@@ -736,6 +738,8 @@ class Capture:
                 rows = found[int(k)]
                 assert rows is not None
                 out.extend((float(self._shift_time[k]), int(k), int(row)) for row in rows)
+        if len(self._handover) >= _HANDOVER_CACHE:  # a long run on a large map
+            self._handover.clear()
         self._handover[cell] = out
         return out
 
