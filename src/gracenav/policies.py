@@ -641,8 +641,9 @@ class CatchOptions:
     shift_scale : float
         S/G of a shift (S ⊇ G, so a shift placed at a catch's end contains its G).
     shift_outer : tuple of float
-        D' position (m) and velocity (m/s) extents of a shift (round), verified from the
-        plan lean and the settled band.
+        Least D' position (m) and velocity (m/s) extents of a shift (round), verified
+        from the plan lean and the settled band; D' is also at least 1.1 and 3 times S's
+        (0.11 m at ``shift_scale`` 1.25).
     """
 
     speeds: tuple[float, ...] = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1)
