@@ -34,6 +34,7 @@ against the map as instantiation does.
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -216,9 +217,8 @@ def catch_primitives(
     (:class:`~gracenav.shape_planner.BrakeReference`) per ramp of ``options.ramps`` and
     torque share of the class, each of the shortest T feasible with the class's lean
     (``max_lean`` or ``settled_max_lean``) and torque (the share of the limit; the
-    whole limit for the nonic). Both stop
-    v T/2 from their start. At speed 0, the rest hold of the tail's duration. Empty if
-    nothing is feasible within ``max_duration``.
+    whole limit for the nonic). Both stop v T/2 from their start. At speed 0, the rest
+    hold of the tail's duration. Empty if nothing is feasible within ``max_duration``.
     """
     from gracenav.shape_planner import NonicReference
 
@@ -382,31 +382,22 @@ def catch_policies(
         if cls not in classes:
             continue
         prims = catch_primitives(speed, opts, gains, lean_class=cls)[: opts.max_candidates]
-        done = False
-        for scale in sorted(scales, reverse=True):
-            for prim in prims:
-                pol = _fixed_outer_policy(
-                    prim,
-                    gains,
-                    goal,
-                    scale,
-                    (along, fv),
-                    shape.correlation,
-                    label=catch_label(speed, cls, scale),
-                    outer_cross=across if speed > 0 else None,
-                )
-                report = verify_headings(
-                    pol,
-                    options,
-                    opts.headings,
-                    push_leans=leans,
-                    boundary_points=opts.boundary_points,
-                )
-                out.append(replace(pol, report=report))
-                if report.passed:
-                    done = True
-                    break
-            if done:
+        for scale, prim in itertools.product(sorted(scales, reverse=True), prims):
+            pol = _fixed_outer_policy(
+                prim,
+                gains,
+                goal,
+                scale,
+                (along, fv),
+                shape.correlation,
+                label=catch_label(speed, cls, scale),
+                outer_cross=across if speed > 0 else None,
+            )
+            report = verify_headings(
+                pol, options, opts.headings, push_leans=leans, boundary_points=opts.boundary_points
+            )
+            out.append(replace(pol, report=report))
+            if report.passed:
                 break
     return tuple(out)
 

@@ -346,7 +346,7 @@ class TerminalPolicy(PlacedPolicy):
         The library rest trim the task reaches first; its G lies in this S.
     """
 
-    approach: int = -1
+    approach: int
 
     @property
     def goal_xy(self) -> NDArray[np.float64]:

@@ -160,7 +160,7 @@ def _catch_outlines(ep: Any, t0: float, t1: float) -> tuple[list[FloatArray], li
     shifts of the captures started in [t0, t1]."""
     starts: list[FloatArray] = []
     outers: list[FloatArray] = []
-    for when, plan in getattr(ep, "captures", ()):
+    for when, plan in ep.captures:
         if not t0 - 1e-9 <= when <= t1 + 1e-9:
             continue
         for placed in plan.policies:
