@@ -14,6 +14,7 @@ from gracenav.capture import (
     SETTLED,
     PlacedPolicy,
     capture_for,
+    catch_policies,
     catch_primitives,
     settled_leans,
     shift_cells,
@@ -243,3 +244,31 @@ def test_pushes_with_the_papers_controller_recover_into_verified_domains(box_roo
         xy = position_state(ep.states, r)[:, :2]
         assert np.min(lib.world_map.clearance(xy)) >= 0.2
     assert reached >= runs - 2
+
+
+def test_catch_policies_keep_the_first_candidate_that_verifies(palette) -> None:
+    """Rebuilding one settled catch verifies candidates shortest reach first and stops at
+    the first that passes; each rejected one says why (D', G, lean or saturation)."""
+    from gracenav.policies import domain_shape
+
+    opts = palette.options
+    gains = palette.gains
+    shape = domain_shape(gains, horizon=opts.shape_horizon)
+    leans = push_lean_table(gains, RegulatorOptions().push_impulses, RegulatorOptions().push_times)
+    out = catch_policies(0.55, gains, opts, shape, leans, classes=(SETTLED,))
+    assert 1 <= len(out) <= opts.catch.max_candidates
+    assert all(f"[{SETTLED}," in p.label for p in out)
+    assert out[-1].report.passed and out[-1].report.max_outer_value <= 1.0
+    for p in out[:-1]:
+        r = p.report
+        assert not r.passed
+        assert (
+            r.max_outer_value > 1.0
+            or r.max_goal_value > 1.0
+            or r.max_lean > opts.lean_limit
+            or r.saturated_runs > 0
+        )
+    reach = [float(np.max(p.primitive.position[:, 0])) for p in out]
+    assert reach == sorted(reach)
+    names = [p.name for p in catch_primitives(0.55, opts.catch, gains, lean_class=SETTLED)]
+    assert [p.primitive.name for p in out] == names[: len(out)]
