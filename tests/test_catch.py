@@ -12,7 +12,9 @@ import pytest
 from gracenav.capture import (
     PUSHED,
     SETTLED,
+    STILL,
     PlacedPolicy,
+    band_leans,
     capture_for,
     catch_policies,
     catch_primitives,
@@ -67,8 +69,11 @@ def test_palette_has_catches_of_both_lean_classes_and_every_shift(palette) -> No
         _catch(palette, v, SETTLED)
         with pytest.raises(AssertionError):
             _catch(palette, v, PUSHED)
-    assert speeds == {round(v, 6) for v in (*opts.speeds, *opts.settled_speeds)}
-    assert len(palette.shifts) == len(shift_cells(opts, palette.d))
+    for v in opts.still_speeds:
+        _catch(palette, v, STILL)
+    assert speeds == {round(v, 6) for v in (*opts.speeds, *opts.settled_speeds, *opts.still_speeds)}
+    # Each shift twice: from S = 1.25 G with the settled band, and as a still shift.
+    assert len(palette.shifts) == 2 * len(shift_cells(opts, palette.d))
     for pol in (*palette.catches, *palette.shifts):
         assert pol.report is not None and pol.report.passed
         assert pol.capture  # fixed D' around the reference, started only when needed
@@ -127,7 +132,14 @@ def test_placed_catch_is_the_rotated_and_moved_primitive(palette, angle) -> None
 
 @pytest.mark.parametrize(
     ("speed", "lean_class", "heading"),
-    [(0.5, PUSHED, 15.0), (1.0, PUSHED, 105.0), (0.3, SETTLED, 75.0), (0.8, SETTLED, 165.0)],
+    [
+        (0.5, PUSHED, 15.0),
+        (1.0, PUSHED, 105.0),
+        (0.3, SETTLED, 75.0),
+        (0.8, SETTLED, 165.0),
+        (0.45, STILL, 45.0),
+        (0.1, STILL, 135.0),
+    ],
 )
 def test_catches_hold_at_headings_and_points_the_verifier_never_used(
     palette, speed, lean_class, heading
@@ -138,11 +150,11 @@ def test_catches_hold_at_headings_and_points_the_verifier_never_used(
     opts = palette.options.catch
     assert opts is not None
     reg = palette.options.regulator or RegulatorOptions()
-    leans = (
-        push_lean_table(pol.gains, reg.push_impulses, reg.push_times)
-        if lean_class == PUSHED
-        else settled_leans(opts)
-    )
+    leans = {
+        PUSHED: push_lean_table(pol.gains, reg.push_impulses, reg.push_times),
+        SETTLED: settled_leans(opts),
+        STILL: band_leans(*opts.still_lean),
+    }[lean_class]
     rotated = dataclasses.replace(
         pol, primitive=pol.primitive.rotated_by(math.radians(heading)), report=None
     )
@@ -272,3 +284,54 @@ def test_catch_policies_keep_the_first_candidate_that_verifies(palette) -> None:
     assert reach == sorted(reach)
     names = [p.name for p in catch_primitives(0.55, opts.catch, gains, lean_class=SETTLED)]
     assert [p.primitive.name for p in out] == names[: len(out)]
+
+
+def test_still_catches_chain_into_still_shifts_and_serve_only_the_plan_lean(
+    palette, box_room
+) -> None:
+    """A still catch has S = G = ``still_scale`` G and a D' of ``still_outer``; a still
+    shift's S contains its G but not a settled catch's G, so only still catches hand
+    over to still shifts. Near walls some states are captured only by still catches,
+    and those are refused once the lean leaves the still band."""
+    from gracenav.capture import _lean_class
+
+    opts = palette.options.catch
+    assert opts is not None
+    settled = _catch(palette, 0.3, SETTLED)
+    still = _catch(palette, 0.3, STILL)
+    g = settled.goal_radii
+    assert still.start_radii.position == pytest.approx(opts.still_scale * g.position)
+    assert still.goal_radii.position == pytest.approx(opts.still_scale * g.position)
+    assert float(np.max(still.outer_extents(np.array([0.0, still.duration]))[0])) == (
+        pytest.approx(max(opts.still_outer[0], 1.1 * still.start_radii.position))
+    )
+    assert f"_{SETTLED}" in still.primitive.name  # one of the settled paths
+    placed = PlacedPolicy(still, 0.7, np.array([1.0, 2.0]))
+    end = placed.end_xy
+    for shift in palette.shifts:
+        s_shift = PlacedPolicy(shift, 0.0, end).start_domain
+        is_still = _lean_class(shift) == STILL
+        assert s_shift.contains_domain(placed.goal_domain)
+        # Same end point: a settled catch's G fits in a plain shift's S only.
+        g_settled = PlacedPolicy(settled, 0.7, end - settled.primitive.rotated_by(0.7).displacement)
+        assert bool(s_shift.contains_domain(g_settled.goal_domain)) == (not is_still)
+    # States 0.32-0.5 m from the bottom wall of the box room moving toward it.
+    lib, _ = box_room
+    capture = capture_for(lib)
+    rng = np.random.default_rng(5)
+    only_still = 0
+    for _ in range(400):
+        y = rng.uniform(0.32, 0.5)
+        state = np.array(
+            [rng.uniform(0.8, 4.2), y, rng.uniform(-0.2, 0.2), -rng.uniform(0.05, 0.4)]
+        )
+        plan = capture.plan(state, lean_deviation=(0.0, 0.0))
+        if plan is None or _lean_class(plan.catch.policy) != STILL:
+            continue
+        if capture.plan(state, lean_deviation=(math.radians(0.3), 0.0)) is None:
+            only_still += 1
+        for pol in plan.policies[1:]:
+            assert pol.start_domain.contains_domain(plan.catch.goal_domain)
+        tilted = capture.plan(state, lean_deviation=(math.radians(1.0), 0.0))
+        assert tilted is None or _lean_class(tilted.catch.policy) == PUSHED
+    assert only_still >= 20

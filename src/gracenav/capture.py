@@ -23,9 +23,16 @@ saturation) at ``headings`` placements over [0°, 180°), in two lean classes:
   D' this needs; usable whatever the measured lean;
 * ``settled``: from the plan lean and the corners of a small band around it
   (:attr:`~gracenav.policies.CatchOptions.settled_lean`), with a narrow D'; usable
-  only when the measured lean is within that band.
+  only when the measured lean is within that band;
+* ``still``: the settled paths from a smaller S and G (half the palette's G) and the
+  corners of a tight band (:attr:`~gracenav.policies.CatchOptions.still_lean`), with
+  a D' half the settled one: the error from S, not the lean band, then sets D'. They
+  serve states at the plan lean (starts, and the position states coverage counts).
 
-Shifts are verified at the 0° and 90° placements from the plan lean and the band.
+Shifts are verified at the 0° and 90° placements from the plan lean and the settled
+band; each is verified a second time from a smaller S (a still catch's G fits in it)
+and the still band, with a narrower D' (a *still shift*). A still catch hands over to
+either kind; the others only to the first.
 :class:`Capture` plans, for one library, the catch, shift and rest trim that take a
 state to the goal at least cost, checking each swept D' grown by the footprint
 against the map as instantiation does.
@@ -72,9 +79,11 @@ __all__ = [
     "PUSHED",
     "SETTLED",
     "SHIFT_NAME",
+    "STILL",
     "Capture",
     "CapturePlan",
     "PlacedPolicy",
+    "band_leans",
     "capture_for",
     "catch_label",
     "catch_policies",
@@ -93,6 +102,7 @@ CATCH_NAME = "catch"
 SHIFT_NAME = "shift"
 PUSHED = "pushed"
 SETTLED = "settled"
+STILL = "still"
 
 #: Planned durations are whole multiples of this (s): 8 control ticks.
 _DURATION_STEP = 1.0 / 128.0
@@ -112,7 +122,12 @@ def catch_label(speed: float, lean_class: str, scale: float) -> str:
 
 
 def _lean_class(policy: MotionPolicy) -> str:
-    return SETTLED if f"[{SETTLED}," in policy.label else PUSHED
+    """PUSHED, SETTLED or STILL for a catch; SETTLED or STILL for a shift."""
+    if f"[{STILL}" in policy.label:
+        return STILL
+    if f"[{SETTLED}," in policy.label or policy.primitive.name.startswith(SHIFT_NAME):
+        return SETTLED
+    return PUSHED
 
 
 # --------------------------------------------------------------------------------------
@@ -188,7 +203,7 @@ def _plan_to_rest(
     assert res is not None
     return sampled_with_rest_tail(
         res,  # type: ignore[arg-type]
-        hi,
+        reference_of(hi).duration,
         options.tail,
         name=name,
         start_velocity=velocity,
@@ -297,9 +312,14 @@ def shift_cells(options: CatchOptions, d: float) -> list[tuple[int, int]]:
 
 
 def settled_leans(options: CatchOptions) -> PushLeanTable:
-    """The four corners (±lean, ±lean rate) of the settled band, along the motion, as a
-    table for :func:`gracenav.policies.verify_policy` (the same at every speed)."""
-    lean, rate = options.settled_lean
+    """The corners of the settled band (:func:`band_leans`)."""
+    return band_leans(*options.settled_lean)
+
+
+def band_leans(lean: float, rate: float) -> PushLeanTable:
+    """The four corners (±``lean`` rad, ±``rate`` rad/s) of a band around the plan
+    lean, along the motion, as a table for :func:`gracenav.policies.verify_policy`
+    (the same at every speed)."""
     return PushLeanTable(
         times=np.arange(4, dtype=float),
         speed=np.full((1, 4), 1e-9),
@@ -370,28 +390,36 @@ def catch_policies(
     sizes (``options.catch.scales``, largest first) and candidate paths
     (:func:`catch_primitives`, shortest reach first, at most ``max_candidates`` per
     size) that verifies, preceded by the candidates that failed (reports attached).
-    Empty if the braking cannot be planned."""
+    A still catch follows the settled paths, with S = G = ``still_scale`` times the
+    palette's G. Empty if the braking cannot be planned."""
     opts = options.catch
     assert opts is not None
     goal = shape.radii(options.goal_position_extent)
+    small = DomainRadii(goal.position * opts.still_scale, goal.velocity * opts.still_scale)
+    still_outer = (opts.still_outer[0], opts.still_outer[0], opts.still_outer[1])
     out: list[MotionPolicy] = []
-    for cls, (along, across, fv), leans, scales in (
-        (PUSHED, opts.pushed_outer, push_leans, opts.scales),
-        (SETTLED, opts.settled_outer, settled_leans(opts), opts.settled_scales),
+    paths: dict[str, list[SampledPrimitive]] = {}
+    for cls, (along, across, fv), leans, scales, base, unit in (
+        (PUSHED, opts.pushed_outer, push_leans, opts.scales, goal, 1.0),
+        (SETTLED, opts.settled_outer, settled_leans(opts), opts.settled_scales, goal, 1.0),
+        (STILL, still_outer, band_leans(*opts.still_lean), (1.0,), small, opts.still_scale),
     ):
         if cls not in classes:
             continue
-        prims = catch_primitives(speed, opts, gains, lean_class=cls)[: opts.max_candidates]
+        path_class = PUSHED if cls == PUSHED else SETTLED
+        if path_class not in paths:
+            paths[path_class] = catch_primitives(speed, opts, gains, lean_class=path_class)
+        prims = paths[path_class][: opts.max_candidates]
         for scale, prim in itertools.product(sorted(scales, reverse=True), prims):
             pol = _fixed_outer_policy(
                 prim,
                 gains,
-                goal,
+                base,
                 scale,
                 (along, fv),
                 shape.correlation,
-                label=catch_label(speed, cls, scale),
-                outer_cross=across if speed > 0 else None,
+                label=catch_label(speed, cls, scale * unit),
+                outer_cross=across if speed > 0 and cls != STILL else None,
             )
             report = verify_headings(
                 pol, options, opts.headings, push_leans=leans, boundary_points=opts.boundary_points
@@ -410,7 +438,8 @@ def shift_policies(
     shape: DomainShape,
 ) -> tuple[MotionPolicy, ...]:
     """The shift by ``cell`` grid steps, verified at the 0° and 90° placements from the
-    plan lean and the settled band (empty if it cannot be planned)."""
+    plan lean and the settled band, then as a still shift (S = ``still_shift_scale``
+    G, the still band, D' ``still_shift_outer``); empty if it cannot be planned."""
     from gracenav.policies import verify_placements
 
     opts = options.catch
@@ -419,15 +448,35 @@ def shift_policies(
     prim = shift_primitive(np.asarray(cell, dtype=float) * grid, opts, gains)
     if prim is None:
         return ()
-    prim = replace(prim, name=f"{SHIFT_NAME}_{cell[0]}_{cell[1]}")
+    name = f"{SHIFT_NAME}_{cell[0]}_{cell[1]}"
+    prim = replace(prim, name=name)
     goal = shape.radii(options.goal_position_extent)
-    pol = _fixed_outer_policy(
-        prim, gains, goal, opts.shift_scale, opts.shift_outer, shape.correlation
-    )
-    report = verify_placements(
-        pol, options, push_leans=settled_leans(opts), boundary_points=opts.boundary_points
-    )
-    return (replace(pol, report=report),)
+    out = []
+    for pol, leans in (
+        (
+            _fixed_outer_policy(
+                prim, gains, goal, opts.shift_scale, opts.shift_outer, shape.correlation
+            ),
+            settled_leans(opts),
+        ),
+        (
+            _fixed_outer_policy(
+                prim,
+                gains,
+                goal,
+                opts.still_shift_scale,
+                opts.still_shift_outer,
+                shape.correlation,
+                label=f"{name}[{STILL}]",
+            ),
+            band_leans(*opts.still_lean),
+        ),
+    ):
+        report = verify_placements(
+            pol, options, push_leans=leans, boundary_points=opts.boundary_points
+        )
+        out.append(replace(pol, report=report))
+    return tuple(out)
 
 
 def reverify(
@@ -443,15 +492,19 @@ def reverify(
 
     opts = options.catch
     assert opts is not None
+    leans = {
+        PUSHED: push_leans,
+        SETTLED: settled_leans(opts),
+        STILL: band_leans(*opts.still_lean),
+    }[_lean_class(policy)]
     if policy.primitive.name.startswith(SHIFT_NAME):
         return verify_placements(
             policy,
             options,
             params=params,
-            push_leans=settled_leans(opts),
+            push_leans=leans,
             boundary_points=opts.boundary_points,
         )
-    leans = push_leans if _lean_class(policy) == PUSHED else settled_leans(opts)
     return combined_report(
         *(
             verify_policy(
@@ -666,6 +719,7 @@ class Capture:
         shifts: list[tuple[MotionPolicy, float]] = []
         paths: list[FloatArray] = []
         reaches: list[FloatArray] = []
+        still: list[bool] = []
         for pol in palette.shifts:
             path, reach = _sweep_of(pol, step)
             for k in range(4):
@@ -674,7 +728,10 @@ class Capture:
                 shifts.append((pol, angle))
                 paths.append(path @ np.array([[c, -s], [s, c]]).T)
                 reaches.append(reach)
+                still.append(_lean_class(pol) == STILL)
         self._shifts = shifts
+        # A still shift's S holds a still catch's G only.
+        self._shift_still = np.array(still, dtype=bool)
         width = max((a.shape[0] for a in paths), default=1)
         self._shift_path = np.zeros((len(paths), width, 2))
         self._shift_reach = np.zeros((len(paths), width))
@@ -693,7 +750,7 @@ class Capture:
         for key in np.unique(keys, axis=0):
             rows = rest[np.all(keys == key, axis=1)]
             self._rest[(int(key[0]), int(key[1]))] = rows
-        self._handover: dict[tuple[int, int], list[tuple[float, int, int]]] = {}
+        self._handover: dict[tuple[int, int, bool], list[tuple[float, int, int]]] = {}
 
     @property
     def available(self) -> bool:
@@ -709,11 +766,12 @@ class Capture:
         )
         return np.asarray(ok.reshape(points.shape[:-1]), dtype=bool)
 
-    def _handovers(self, cell: tuple[int, int]) -> list[tuple[float, int, int]]:
+    def _handovers(self, cell: tuple[int, int], still: bool) -> list[tuple[float, int, int]]:
         """(shift duration, shift index or −1, rest row) of every way from grid point
         ``cell`` onto a rest trim: the rest trims at the point itself, then those a
-        shift with a clear swept D' reaches."""
-        got = self._handover.get(cell)
+        shift with a clear swept D' reaches (still shifts too after a ``still`` catch)."""
+        key = (cell[0], cell[1], still)
+        got = self._handover.get(key)
         if got is not None:
             return got
         out: list[tuple[float, int, int]] = []
@@ -721,7 +779,10 @@ class Capture:
             out.append((0.0, -1, int(row)))
         q = self.origin + np.asarray(cell, dtype=float) * self.grid
         ends = self._shift_cells + np.asarray(cell, dtype=np.int64)
-        found = [self._rest.get((int(i), int(j))) for i, j in ends]
+        found = [
+            None if self._shift_still[k] and not still else self._rest.get((int(i), int(j)))
+            for k, (i, j) in enumerate(ends)
+        ]
         ks = np.array([k for k, rows in enumerate(found) if rows is not None], dtype=np.int64)
         if ks.size:
             clear = np.all(self._clear(q + self._shift_path[ks], self._shift_reach[ks]), axis=1)
@@ -731,7 +792,7 @@ class Capture:
                 out.extend((float(self._shift_time[k]), int(k), int(row)) for row in rows)
         if len(self._handover) >= _HANDOVER_CACHE:  # a long run on a large map
             self._handover.clear()
-        self._handover[cell] = out
+        self._handover[key] = out
         return out
 
     def _candidates(
@@ -788,8 +849,9 @@ class Capture:
         state : array_like, shape (4,)
         lean_deviation : (float, float), optional
             The measured lean (rad) and lean rate (rad/s) deviation from the plan's
-            (the catch's plan lean is upright), largest over both axes; settled catches
-            are considered only when it is within their band. None: only pushed ones.
+            (the catch's plan lean is upright), largest over both axes; settled and
+            still catches are considered only when it is within their band. None:
+            only pushed ones.
         cost_to_go : ndarray, optional
             Cost-to-go of every library row toward the goal (inf where unreachable);
             None ranks rest trims equally (any verified capture will do).
@@ -804,8 +866,10 @@ class Capture:
         classes: tuple[str, ...] = (PUSHED,)
         opts = self.options
         if lean_deviation is not None and opts is not None:
-            lean, rate = opts.settled_lean
-            if abs(lean_deviation[0]) <= lean and abs(lean_deviation[1]) <= rate:
+            dev = (abs(lean_deviation[0]), abs(lean_deviation[1]))
+            if dev[0] <= opts.still_lean[0] and dev[1] <= opts.still_lean[1]:
+                classes = (STILL, SETTLED, PUSHED)
+            elif dev[0] <= opts.settled_lean[0] and dev[1] <= opts.settled_lean[1]:
                 classes = (SETTLED, PUSHED)
         best: tuple[float, int, float] | None = None
         chosen = None
@@ -814,7 +878,7 @@ class Capture:
             rot = np.array([[c, -s], [s, c]])
             if not np.all(self._clear(start + m.path @ rot.T, m.reach)):
                 continue
-            ways = self._handovers(cell)
+            ways = self._handovers(cell, m.lean_class == STILL)
             if settle is not None and ways:
                 settle(np.array(sorted({w[2] for w in ways}), dtype=np.int64))
             for shift_t, k, row in ways:
@@ -839,8 +903,8 @@ class Capture:
         return CapturePlan(catch, shift, row, best[0])
 
     def covers(self, states: ArrayLike) -> BoolArray:
-        """Whether a capture plan (with the plan lean: settled catches too) exists for
-        each state (n, 4)."""
+        """Whether a capture plan (with the plan lean: settled and still catches too)
+        exists for each state (n, 4)."""
         pts = np.asarray(states, dtype=float).reshape(-1, 4)
         return np.array(
             [self.plan(s, lean_deviation=(0.0, 0.0)) is not None for s in pts], dtype=bool

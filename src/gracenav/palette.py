@@ -69,7 +69,7 @@ REGULATOR_NAME = "regulate"
 #: rebuilt exactly enough (see SampledPrimitive.from_coarse) when loaded.
 COARSE_STRIDE = 8
 #: Bumped whenever the planner, controller or verification code changes results.
-ALGORITHM_VERSION = "5"
+ALGORITHM_VERSION = "6"
 #: Largest relative difference (see ControllerGains.relative_difference) between a
 #: palette's stored gains and the gains requested of it that still counts as the
 #: same design. Rebuilding the gains on another numpy/scipy build changes them by
@@ -739,6 +739,17 @@ def _shift_cells(options: CatchOptions, d: float) -> list[tuple[int, int]]:
     return shift_cells(options, d)
 
 
+def _catch_classes(speed: float, options: CatchOptions) -> tuple[str, ...]:
+    """The lean classes of the catches from ``speed`` (m/s) the options ask for."""
+    from gracenav.capture import PUSHED, SETTLED, STILL
+
+    return (
+        *((PUSHED,) if speed in options.speeds else ()),
+        *((SETTLED,) if speed in options.speeds or speed in options.settled_speeds else ()),
+        *((STILL,) if speed in options.still_speeds else ()),
+    )
+
+
 def _catch_one(
     args: tuple[float, tuple[str, ...], ControllerGains, VerificationOptions, DomainShape],
 ) -> tuple[MotionPolicy, ...]:
@@ -816,7 +827,6 @@ def build_palette(
     Palette
     """
     from gracenav._progress import Progress
-    from gracenav.capture import PUSHED, SETTLED
     from gracenav.policies import domain_shape
 
     params = params if params is not None else BallbotParams()
@@ -846,8 +856,10 @@ def build_palette(
     catch_jobs = (
         []
         if cat is None
-        else [(v, (PUSHED, SETTLED), gains, options, shape) for v in cat.speeds]
-        + [(v, (SETTLED,), gains, options, shape) for v in cat.settled_speeds]
+        else [
+            (v, _catch_classes(v, cat), gains, options, shape)
+            for v in sorted({*cat.speeds, *cat.settled_speeds, *cat.still_speeds})
+        ]
     )
     shift_jobs = (
         [] if cat is None else [(c, d, gains, options, shape) for c in _shift_cells(cat, d)]

@@ -644,6 +644,25 @@ class CatchOptions:
         Least D' position (m) and velocity (m/s) extents of a shift (round), verified
         from the plan lean and the settled band; D' is also at least 1.1 and 3 times S's
         (0.11 m at ``shift_scale`` 1.25).
+    still_speeds : tuple of float
+        Speeds (m/s) of the catches of the *still* class: the settled class's paths,
+        verified from a small S (``still_scale``) with the lean within ``still_lean`` of
+        the plan's, so that their D' (``still_outer``) is about half the settled one.
+        They serve states whose lean is the plan's (starts, and the position states
+        coverage counts), near walls.
+    still_scale : float
+        S and G of a still catch, as a share of the palette's G (in (0, 1]).
+    still_outer : tuple of float
+        D' position (m) and velocity (m/s) extents of a still catch (round); also at
+        least 1.1 and 3 times S's.
+    still_lean : tuple of float
+        Largest lean (rad) and lean rate (rad/s) deviation from the plan's of a still
+        catch or shift (verified at the corners of that band).
+    still_shift_scale : float
+        S/G of a still shift, at least ``still_scale`` (its S ⊇ a still catch's G); the
+        same shifts, verified from that S and the still band, with D' ``still_shift_outer``.
+    still_shift_outer : tuple of float
+        Least D' position (m) and velocity (m/s) extents of a still shift (round).
     """
 
     speeds: tuple[float, ...] = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1)
@@ -668,6 +687,14 @@ class CatchOptions:
     shift_radius: float = 0.375
     shift_scale: float = 1.25
     shift_outer: tuple[float, float] = (0.10, 0.5)
+    still_speeds: tuple[float, ...] = (
+        0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5, 0.55, 0.6,
+    )  # fmt: skip
+    still_scale: float = 0.5
+    still_outer: tuple[float, float] = (0.05, 0.5)
+    still_lean: tuple[float, float] = (math.radians(0.1), math.radians(0.5))
+    still_shift_scale: float = 0.6
+    still_shift_outer: tuple[float, float] = (0.055, 0.5)
 
     def __post_init__(self) -> None:
         for name in (
@@ -682,6 +709,10 @@ class CatchOptions:
             "settled_outer",
             "settled_lean",
             "shift_outer",
+            "still_speeds",
+            "still_outer",
+            "still_lean",
+            "still_shift_outer",
         ):
             object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
         if not self.speeds or any(v < 0 for v in self.speeds):
@@ -708,6 +739,19 @@ class CatchOptions:
                 )
         if not self.shift_scale >= 1:
             raise ConfigError(f"shift_scale must be >= 1 (S ⊇ G), got {self.shift_scale}")
+        if any(v < 0 for v in self.still_speeds):
+            raise ConfigError(f"catch still_speeds must be >= 0, got {self.still_speeds}")
+        if not 0 < self.still_scale <= 1 or not self.still_shift_scale >= self.still_scale:
+            raise ConfigError(
+                "catch still_scale must be in (0, 1] and still_shift_scale at least it "
+                f"(a still shift's S ⊇ a still catch's G), got {self.still_scale} and "
+                f"{self.still_shift_scale}"
+            )
+        for pair in (self.still_outer, self.still_lean, self.still_shift_outer):
+            if len(pair) != 2 or not all(v > 0 for v in pair):
+                raise ConfigError(
+                    f"catch still extents and band must be two values > 0, got {pair}"
+                )
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> CatchOptions:
