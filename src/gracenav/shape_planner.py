@@ -70,7 +70,6 @@ __all__ = [
     "ShapePlannerResult",
     "ShapePlannerStatus",
     "ShapeTrajectory",
-    "SplitBrakeReference",
     "TrajectorySample",
     "flat_output_gain",
     "flat_output_lengths",
@@ -238,78 +237,6 @@ class BrakeReference:
         if order > 0:
             out = np.where(np.atleast_1d(np.asarray(t, dtype=float)) > self.duration, 0.0, out)
         return np.asarray(out[:, None] * self.velocity[None, :], dtype=np.float64)
-
-
-@dataclass(frozen=True)
-class SplitBrakeReference:
-    """Braking from a velocity to rest in two orthogonal parts: the component along a
-    unit ``direction`` n stops over ``normal_duration`` T_n, the rest over ``duration``
-    T >= T_n, each a :class:`BrakeReference` with the same ``ramp``.
-
-    Near an obstacle ahead and to one side, braking the part of the velocity toward
-    it first leaves the robot sliding along it and stops it v_n T_n/2 short of its
-    start along n, where braking straight (within the same peak deceleration) would
-    take it v_n T/2 along n. The path bends; the stop is v_n n T_n/2 + v_t T/2 with
-    v_t = v₀ − v_n n.
-
-    Parameters
-    ----------
-    duration : float
-        T (s), at least ``normal_duration``.
-    normal_duration : float
-        T_n (s), at least 2 ``ramp``.
-    velocity : ndarray, shape (2,)
-        Initial velocity v₀ (m/s); the reference starts at the origin.
-    direction : ndarray, shape (2,)
-        n, a unit vector (normalised here).
-    ramp : float
-        Rise (and fall) time of each part's deceleration (s), positive.
-    """
-
-    duration: float
-    normal_duration: float
-    velocity: FloatArray
-    direction: FloatArray
-    ramp: float
-    _parts: tuple[BrakeReference, BrakeReference] = field(init=False, repr=False, compare=False)
-
-    def __post_init__(self) -> None:
-        t, tn = float(self.duration), float(self.normal_duration)
-        n = np.asarray(self.direction, dtype=float).reshape(2)
-        norm = float(np.hypot(*n))
-        if not (math.isfinite(t) and math.isfinite(tn) and tn <= t and norm > 0.0):
-            raise ConfigError(
-                "a split brake reference needs normal_duration <= duration and a nonzero "
-                f"direction, got {tn!r} s, {t!r} s and {n.tolist()!r}"
-            )
-        n = n / norm
-        n.setflags(write=False)
-        v = np.asarray(self.velocity, dtype=float).reshape(2)
-        v.setflags(write=False)
-        vn = float(v @ n) * n
-        object.__setattr__(self, "direction", n)
-        object.__setattr__(self, "velocity", v)
-        parts = (BrakeReference(tn, vn, self.ramp), BrakeReference(t, v - vn, self.ramp))
-        object.__setattr__(self, "_parts", parts)
-
-    @property
-    def stop(self) -> FloatArray:
-        """Where the reference comes to rest (m): v_n n T_n/2 + v_t T/2."""
-        a, b = self._parts
-        out: FloatArray = a.velocity * a.duration / 2.0 + b.velocity * b.duration / 2.0
-        return out
-
-    @property
-    def peak_deceleration(self) -> float:
-        """Largest deceleration (m/s²) while both parts hold their peak (an upper bound
-        of the deceleration at any time)."""
-        return float(np.hypot(self._parts[0].peak_deceleration, self._parts[1].peak_deceleration))
-
-    def value(self, t: ArrayLike, order: int = 0) -> FloatArray:
-        """Derivative ``order`` at times ``t`` (s), shape (N, 2) (m/s^order); constant
-        (at rest) after T."""
-        a, b = self._parts
-        return np.asarray(a.value(t, order) + b.value(t, order), dtype=np.float64)
 
 
 # --------------------------------------------------------------------------------------
