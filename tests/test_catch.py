@@ -59,12 +59,13 @@ def test_palette_has_catches_of_both_lean_classes_and_every_shift(palette) -> No
     opts = palette.options.catch
     assert opts is not None
     speeds = {round(float(p.primitive.start_velocity[0]), 6) for p in palette.catches}
-    # Every speed has a settled catch; every pushed one below the torque limit's reach;
-    # the settled-only speeds no pushed one.
+    # Every speed has a pushed catch and up to 1.1 m/s a settled one (at 1.2 m/s the
+    # settled band saturates the motor); the settled-only speeds no pushed one. Only
+    # the pushed ones test the flat output's state.
     for v in opts.speeds:
-        _catch(palette, v, SETTLED)
-        if v <= 1.0:
-            _catch(palette, v, PUSHED)
+        if v <= 1.1:
+            _catch(palette, v, SETTLED)
+        _catch(palette, v, PUSHED)
     for v in opts.settled_speeds:
         _catch(palette, v, SETTLED)
         with pytest.raises(AssertionError):
@@ -77,6 +78,7 @@ def test_palette_has_catches_of_both_lean_classes_and_every_shift(palette) -> No
     for pol in (*palette.catches, *palette.shifts):
         assert pol.report is not None and pol.report.passed
         assert pol.capture  # fixed D' around the reference, started only when needed
+        assert pol.flat_start == (f"[{PUSHED}," in pol.label)
     # Catches decelerate along +x to rest: smooth-step stop v T / 2, then the rest tail.
     for pol in palette.catches:
         prim = pol.primitive
@@ -135,6 +137,7 @@ def test_placed_catch_is_the_rotated_and_moved_primitive(palette, angle) -> None
     [
         (0.5, PUSHED, 15.0),
         (1.0, PUSHED, 105.0),
+        (1.2, PUSHED, 45.0),
         (0.3, SETTLED, 75.0),
         (0.8, SETTLED, 165.0),
         (0.45, STILL, 45.0),
@@ -335,3 +338,39 @@ def test_still_catches_chain_into_still_shifts_and_serve_only_the_plan_lean(
         tilted = capture.plan(state, lean_deviation=(math.radians(1.0), 0.0))
         assert tilted is None or _lean_class(tilted.catch.policy) == PUSHED
     assert only_still >= 20
+
+
+def test_flat_position_state_moves_the_ball_state_by_the_lean(palette) -> None:
+    """(y, ẏ) = (x + L φ, ẋ + L φ̇) per axis, with L the flat output's length. After a
+    push the ball's speed swings by several times as much as the flat output's
+    (measured: 4-5 times), which is why pushed catches test the flat state."""
+    from gracenav.policies import flat_position_state
+    from gracenav.shape_planner import flat_output_lengths
+
+    params = palette.params
+    length = flat_output_lengths(params)
+    p = np.array([1.0, 2.0, 0.5, -0.25])
+    lean, rate = np.array([0.02, -0.01]), np.array([-0.3, 0.1])
+    got = flat_position_state(p, lean, rate, params)
+    np.testing.assert_allclose(got, [*(p[:2] + length * lean), *(p[2:] + length * rate)])
+    np.testing.assert_allclose(flat_position_state(p, np.zeros(2), np.zeros(2), params), p)
+    # The push table (robot at rest pushed along +x): over the 0.3 s after the push
+    # the ball's speed changes by far more than the flat output's.
+    reg = palette.options.regulator or RegulatorOptions()
+    table = push_lean_table(palette.gains, reg.push_impulses, reg.push_times)
+    flat = table.speed + float(np.mean(length)) * table.lean_rate
+    ball_change = np.ptp(table.speed, axis=1)
+    flat_change = np.ptp(flat, axis=1)
+    assert np.all(table.lean_rate[:, 1] < 0)  # 0.1 s after: the ball runs ahead
+    assert np.all(flat_change < 0.5 * ball_change), (flat_change, ball_change)
+    # The hybrid controller's plan uses the flat state for pushed catches only: the
+    # 0.9 m/s pushed catch's S centre in flat coordinates, its ball 0.3 m/s ahead.
+    capture = capture_for(
+        build_library(palette, load_map(BOX_ROOM), footprint_radius=0.2, max_halvings=1)
+    )
+    centre = np.array([1.0, 1.0, 0.9, 0.0])
+    ball = centre + np.array([0.0, 0.0, 0.3, 0.0])
+    with_flat = capture._candidates(ball, (PUSHED,), centre)
+    assert any(abs(m.speed - 0.9) < 1e-9 for _, _, m, *_ in with_flat)
+    ball_only = capture._candidates(ball, (PUSHED,))
+    assert not any(abs(m.speed - 0.9) < 1e-9 for _, _, m, *_ in ball_only)

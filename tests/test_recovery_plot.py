@@ -11,7 +11,9 @@ import yaml
 from PIL import Image
 
 from gracenav.cli import main
+from gracenav.params import BallbotParams
 from gracenav.plotting.recovery import plot_recovery, recovery_data
+from gracenav.policies import flat_position_state
 from gracenav.scenarios import parse_scenario, run_scenario
 
 SCENARIOS = Path(str(resources.files("gracenav") / "data" / "scenarios"))
@@ -120,7 +122,13 @@ def test_catches_placed_at_the_state_are_drawn_with_their_domains(pushed) -> Non
     assert ep.time[tick] == pytest.approx(when, abs=1e-12)
     # In the controller's coordinates (nominal radius: the plant's here) the state at
     # the capture lies in the catch's S, and the catch's G in the shift's S if any.
-    assert plan.catch.start_domain.contains(ep.position_state[tick])
+    # A pushed catch's S holds the flat output's position state (ball plus L times the
+    # lean); the others the ball's.
+    state = ep.position_state[tick]
+    if plan.catch.policy.flat_start:
+        lean, rate = ep.states[tick, 2:4], ep.states[tick, 6:8]
+        state = flat_position_state(state, lean, rate, BallbotParams())
+    assert plan.catch.start_domain.contains(state)
     data = recovery_data(pushed)
     assert data.window[0] <= when <= data.window[1]
     assert len(data.catch_start_domains) == len(plan.policies)

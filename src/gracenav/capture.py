@@ -20,7 +20,9 @@ saturation) at ``headings`` placements over [0°, 180°), in two lean classes:
 
 * ``pushed``: from the plan lean and from the lean and lean rate a push leaves 0,
   0.1, 0.2 and 0.3 s after it (the capture regulators' push table), with the wider
-  D' this needs; usable whatever the measured lean;
+  D' this needs; usable whatever the measured lean. Their S holds the position
+  state of the flat output (ball plus L times the lean), which a push does not
+  throw ahead the way it throws the ball (:attr:`MotionPolicy.flat_start`);
 * ``settled``: from the plan lean and the corners of a small band around it
   (:attr:`~gracenav.policies.CatchOptions.settled_lean`), with a narrow D'; usable
   only when the measured lean is within that band;
@@ -210,12 +212,6 @@ def _plan_to_rest(
     )
 
 
-def _brake_reference(duration: float, *, velocity: FloatArray, ramp: float) -> PositionReference:
-    from gracenav.shape_planner import BrakeReference
-
-    return BrakeReference(duration, velocity, ramp)
-
-
 def _reach_ahead(prim: SampledPrimitive) -> float:
     """How far ahead of its start (m, along its initial velocity) a catch's path goes."""
     return float(np.max(prim.position[:, 0]))
@@ -235,7 +231,7 @@ def catch_primitives(
     whole limit for the nonic). Both stop v T/2 from their start. At speed 0, the rest
     hold of the tail's duration. Empty if nothing is feasible within ``max_duration``.
     """
-    from gracenav.shape_planner import NonicReference
+    from gracenav.shape_planner import BrakeReference, NonicReference
 
     name = f"{CATCH_NAME}_{speed:g}_{lean_class}"
     if speed == 0.0:
@@ -260,7 +256,7 @@ def catch_primitives(
         for ramp in options.ramps:
             found.append(
                 _plan_to_rest(
-                    functools.partial(_brake_reference, velocity=v, ramp=ramp),
+                    functools.partial(BrakeReference, velocity=v, ramp=ramp),
                     v,
                     opts,
                     share * limit,
@@ -421,6 +417,7 @@ def catch_policies(
                 label=catch_label(speed, cls, scale * unit),
                 outer_cross=across if speed > 0 and cls != STILL else None,
             )
+            pol = replace(pol, flat_start=cls == PUSHED)
             report = verify_headings(
                 pol, options, opts.headings, push_leans=leans, boundary_points=opts.boundary_points
             )
@@ -796,16 +793,18 @@ class Capture:
         return out
 
     def _candidates(
-        self, state: FloatArray, classes: tuple[str, ...]
+        self, state: FloatArray, classes: tuple[str, ...], flat: FloatArray | None = None
     ) -> list[tuple[int, float, _Member, float, FloatArray, tuple[int, int]]]:
         """(class rank, S value, member, heading, start, end cell) of every placement of
-        a catch whose S contains ``state``, the catch ending on a grid point near its
-        natural stop."""
-        p, v = state[:2], state[2:4]
-        speed = float(np.hypot(*v))
-        u = v / speed if speed > 1e-9 else np.array([1.0, 0.0])
+        a catch whose S contains ``state`` (``flat``, the flat output's position state,
+        for a catch of :attr:`~gracenav.policies.MotionPolicy.flat_start`; default
+        ``state``), the catch ending on a grid point near its natural stop."""
         out = []
         for m in self._members:
+            st = flat if flat is not None and m.policy.flat_start else state
+            p, v = st[:2], st[2:4]
+            speed = float(np.hypot(*v))
+            u = v / speed if speed > 1e-9 else np.array([1.0, 0.0])
             if m.lean_class not in classes or abs(m.speed - speed) > _SPEED_WINDOW:
                 continue
             base = np.round((p + m.stop * u - self.origin) / self.grid).astype(np.int64)
@@ -841,12 +840,14 @@ class Capture:
         lean_deviation: tuple[float, float] | None = None,
         cost_to_go: FloatArray | None = None,
         settle: Callable[[NDArray[np.int64]], None] | None = None,
+        flat_state: ArrayLike | None = None,
     ) -> CapturePlan | None:
         """The cheapest verified capture of ``state`` (x, y, ẋ, ẏ), or None.
 
         Parameters
         ----------
         state : array_like, shape (4,)
+            The ball's position state.
         lean_deviation : (float, float), optional
             The measured lean (rad) and lean rate (rad/s) deviation from the plan's
             (the catch's plan lean is upright), largest over both axes; settled and
@@ -859,10 +860,15 @@ class Capture:
             Called with the rest-trim rows a clear catch could end on before their
             ``cost_to_go`` is read (a :class:`~gracenav.planning.LazyPolicyTree` fills
             it on demand).
+        flat_state : array_like, shape (4,), optional
+            The flat output's position state
+            (:func:`~gracenav.policies.flat_position_state`), which the pushed
+            catches' S holds; default ``state`` (the lean at the plan's).
         """
         if not self._members:
             return None
         st = np.asarray(state, dtype=float).reshape(4)
+        flat = None if flat_state is None else np.asarray(flat_state, dtype=float).reshape(4)
         classes: tuple[str, ...] = (PUSHED,)
         opts = self.options
         if lean_deviation is not None and opts is not None:
@@ -873,7 +879,7 @@ class Capture:
                 classes = (SETTLED, PUSHED)
         best: tuple[float, int, float] | None = None
         chosen = None
-        for rank, value, m, heading, start, cell in self._candidates(st, classes):
+        for rank, value, m, heading, start, cell in self._candidates(st, classes, flat):
             c, s = math.cos(heading), math.sin(heading)
             rot = np.array([[c, -s], [s, c]])
             if not np.all(self._clear(start + m.path @ rot.T, m.reach)):

@@ -30,7 +30,7 @@ from gracenav.graph import PreparesGraph
 from gracenav.library import PolicyLibrary, quarter_turn
 from gracenav.params import BallbotParams
 from gracenav.planning import CostCriterion, LazyPolicyTree, PolicyTree, plan_tree
-from gracenav.policies import PrimitiveKind, instantiated_reference
+from gracenav.policies import PrimitiveKind, flat_position_state, instantiated_reference
 from gracenav.replanning import HOLD_MARGIN, ObstacleSensing, ObstacleTracker, ReplanEvent
 from gracenav.simulate import (
     BodyForce,
@@ -693,11 +693,13 @@ class HybridController:
     def capture_plan(self, x: ArrayLike, tree: PolicyTree | LazyPolicyTree) -> CapturePlan | None:
         """The cheapest verified capture (catch, shift, rest trim toward the tree's goal)
         of the model state ``x`` (8,), or None (see :class:`gracenav.capture.Capture`).
-        Settled catches are considered when the lean and lean rate (norms over both
-        axes) are within their band of upright."""
+        Settled and still catches are considered when the lean and lean rate (norms
+        over both axes) are within their band of upright; the pushed ones test the
+        flat output's position state (catches start upright)."""
         capture = capture_for(self.library)
         xs = np.asarray(x, dtype=float)
         p = position_state(xs, self.params.ball_radius)
+        flat = flat_position_state(p, xs[2:4], xs[6:8], self.params)
         deviation = (float(np.hypot(*xs[2:4])), float(np.hypot(*xs[6:8])))
         settle = None
         if isinstance(tree, LazyPolicyTree):  # close the cheapest of the rows asked for
@@ -706,7 +708,13 @@ class HybridController:
             def settle(rows: IntArray) -> None:
                 lazy.settle(rows, best=True, budget=_LAZY_RECOVERY_BUDGET)
 
-        return capture.plan(p, lean_deviation=deviation, cost_to_go=tree.cost_to_go, settle=settle)
+        return capture.plan(
+            p,
+            lean_deviation=deviation,
+            cost_to_go=tree.cost_to_go,
+            settle=settle,
+            flat_state=flat,
+        )
 
     def best_policy(self, p: ArrayLike, tree: PolicyTree | LazyPolicyTree) -> int:
         """The policy with the lowest cost-to-go whose S contains ``p`` (−1 if none).

@@ -69,7 +69,7 @@ REGULATOR_NAME = "regulate"
 #: rebuilt exactly enough (see SampledPrimitive.from_coarse) when loaded.
 COARSE_STRIDE = 8
 #: Bumped whenever the planner, controller or verification code changes results.
-ALGORITHM_VERSION = "6"
+ALGORITHM_VERSION = "7"
 #: Largest relative difference (see ControllerGains.relative_difference) between a
 #: palette's stored gains and the gains requested of it that still counts as the
 #: same design. Rebuilding the gains on another numpy/scipy build changes them by
@@ -255,6 +255,7 @@ class Palette:
                     "capture": pol.capture,
                     "start_correlation": pol.start_correlation,
                     "outer_cross": pol.outer_cross,
+                    "flat_start": pol.flat_start,
                 }
             )
         arrays["header"] = np.frombuffer(json.dumps(header).encode(), dtype=np.uint8)
@@ -462,6 +463,7 @@ def _policies_from(
                     None if meta["start_correlation"] is None else float(meta["start_correlation"])
                 ),
                 outer_cross=None if meta.get("outer_cross") is None else float(meta["outer_cross"]),
+                flat_start=bool(meta.get("flat_start", False)),
             )
         )
     return tuple(out)
