@@ -360,47 +360,35 @@ def plot_recovery(
     plt = _plt()
     fig, ax = plt.subplots(figsize=size, constrained_layout=True)
     draw_map(ax, result.world_map)
-    for k, outline in enumerate(data.start_domains):
-        ax.fill(outline[:, 0], outline[:, 1], color="tab:blue", alpha=0.08, lw=0, zorder=2)
-        ax.plot(
-            outline[:, 0],
-            outline[:, 1],
-            color="tab:blue",
-            lw=0.9,
-            alpha=0.6,
-            zorder=2,
-            label="start domains S" if k == 0 else None,
-        )
-    for k, outline in enumerate(data.catch_outer_domains):
-        ax.plot(
-            outline[:, 0],
-            outline[:, 1],
-            color="tab:green",
-            lw=0.6,
-            alpha=0.35,
-            zorder=2,
-            label="D'(t) of a catch or shift" if k == 0 else None,
-        )
-    for k, outline in enumerate(data.catch_start_domains):
-        ax.fill(outline[:, 0], outline[:, 1], color="tab:green", alpha=0.25, lw=0, zorder=2)
-        ax.plot(
-            outline[:, 0],
-            outline[:, 1],
-            color="tab:green",
-            lw=1.2,
-            zorder=3,
-            label="S of a catch or shift" if k == 0 else None,
-        )
-    for k, ex in enumerate(data.exits):
-        ax.plot(
-            ex.outline[:, 0],
-            ex.outline[:, 1],
+    # Outlines: label, colour, line style, width, opacity, fill opacity, z-order.
+    for outlines, label, color, ls, lw, alpha, fill, z in (
+        (data.start_domains, "start domains S", "tab:blue", "-", 0.9, 0.6, 0.08, 2),
+        (data.catch_outer_domains, "D'(t) of a catch or shift", "tab:green", "-", 0.6, 0.35, 0, 2),
+        (data.catch_start_domains, "S of a catch or shift", "tab:green", "-", 1.2, 1.0, 0.25, 3),
+        (
+            [ex.outline for ex in data.exits],
+            "D'(t) at a domain exit",
+            "tab:orange",
             ":",
-            color="tab:orange",
-            lw=1.2,
-            zorder=3,
-            label="D'(t) at a domain exit" if k == 0 else None,
-        )
+            1.2,
+            1.0,
+            0,
+            3,
+        ),
+    ):
+        for k, outline in enumerate(outlines):
+            if fill:
+                ax.fill(outline[:, 0], outline[:, 1], color=color, alpha=fill, lw=0, zorder=z)
+            ax.plot(
+                outline[:, 0],
+                outline[:, 1],
+                ls,
+                color=color,
+                lw=lw,
+                alpha=alpha,
+                zorder=z,
+                label=label if k == 0 else None,
+            )
     ref = ep.reference
     ax.plot(ref[:, 0], ref[:, 1], "--", color="0.35", lw=1, zorder=3, label="reference")
     ax.plot(data.path[:, 0], data.path[:, 1], "-", color="tab:blue", lw=2, zorder=4, label="path")
