@@ -799,12 +799,17 @@ class Capture:
         a catch whose S contains ``state`` (``flat``, the flat output's position state,
         for a catch of :attr:`~gracenav.policies.MotionPolicy.flat_start`; default
         ``state``), the catch ending on a grid point near its natural stop."""
+
+        def motion(st: FloatArray) -> tuple[FloatArray, FloatArray, float, FloatArray]:
+            v = st[2:4]
+            speed = float(np.hypot(*v))
+            return st[:2], v, speed, v / speed if speed > 1e-9 else np.array([1.0, 0.0])
+
+        of_state = motion(state)
+        of_flat = of_state if flat is None else motion(flat)
         out = []
         for m in self._members:
-            st = flat if flat is not None and m.policy.flat_start else state
-            p, v = st[:2], st[2:4]
-            speed = float(np.hypot(*v))
-            u = v / speed if speed > 1e-9 else np.array([1.0, 0.0])
+            p, v, speed, u = of_flat if m.policy.flat_start else of_state
             if m.lean_class not in classes or abs(m.speed - speed) > _SPEED_WINDOW:
                 continue
             base = np.round((p + m.stop * u - self.origin) / self.grid).astype(np.int64)

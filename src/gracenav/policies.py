@@ -1204,19 +1204,17 @@ def verify_policy(
         speed = np.hypot(p0[:, 2], p0[:, 3])
         unit = p0[:, 2:4] / np.maximum(speed, 1e-12)[:, None]
         variants = [x0]
-        length = None
+        flat_length = None
         if policy.flat_start:
             from gracenav.shape_planner import flat_output_lengths
 
-            length = flat_output_lengths(policy.gains.params)
+            flat_length = float(np.mean(flat_output_lengths(policy.gains.params)))
         for k in range(push_leans.times.size):
-            dl, dr = push_leans.lean_at(
-                k, speed, flat_length=None if length is None else float(np.mean(length))
-            )
+            dl, dr = push_leans.lean_at(k, speed, flat_length=flat_length)
             d_lean, d_rate = unit * dl[:, None], unit * dr[:, None]
             ball = p0
-            if length is not None:  # the flat output on S's boundary, the ball off it
-                ball = p0 - np.concatenate([length * d_lean, length * d_rate], axis=1)
+            if policy.flat_start:  # the flat output on S's boundary, the ball off it
+                ball = flat_position_state(p0, -d_lean, -d_rate, policy.gains.params)
             variants.append(
                 state_from_position(ball, r, lean=lean + d_lean, lean_rate=rate + d_rate)
             )
