@@ -4,8 +4,8 @@ Coverage is measured on position states (x, y, ẋ, ẏ) with x, y uniform over 
 free positions whose clearance (distance to the nearest obstacle or wall) is at
 least ``footprint + margin`` and (ẋ, ẏ) uniform over the disc |v| <= 0.5 m/s. A
 state is covered when it lies in at least one instantiated start domain S, or when
-a capture (a catch placed at the state, a shift, a rest trim: gracenav.capture) is
-planned for it with the plan lean. Two counts:
+a capture (a catch placed at the state, up to two shifts, a rest trim:
+gracenav.capture) is planned for it with the plan lean. Two counts:
 
 * ``library``: the library's estimate, ``start_domain_covers`` or
   ``capture_for(lib).plan``;
@@ -13,8 +13,8 @@ planned for it with the plan lean. Two counts:
   ellipsoid inequality (no spatial index), or a capture plan that passes an
   independent dense check: the catch's S (in the world frame) contains the state,
   64 points on the boundary of every tick's D' (its XY projection) of the catch and
-  the shift have clearance >= footprint, the shift's S contains the
-  catch's G and the rest trim's S the last G (exact ellipsoid containment).
+  the shifts have clearance >= footprint, each shift's S contains the G before it
+  and the rest trim's S the last G (exact ellipsoid containment).
 
 Targets: >= 99 % at margin 0.3 m and >= 90 % at margin 0.1 m on the 5 m room, the
 paper's Fig. 5 map and the cluttered 6 m room; library + graph on the paper-size
@@ -117,10 +117,10 @@ def capture_checked(lib: PolicyLibrary, state: np.ndarray) -> bool:
         if not outer_domains_clear(lib, placed):
             return False
     last = plan.catch.goal_domain
-    if plan.shift is not None:
-        if not plan.shift.start_domain.contains_domain(last):
+    for shift in plan.shifts:
+        if not shift.start_domain.contains_domain(last):
             return False
-        last = plan.shift.goal_domain
+        last = shift.goal_domain
     return bool(lib.policy(plan.rest_row).start_domain.contains_domain(last))
 
 

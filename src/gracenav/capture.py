@@ -26,10 +26,12 @@ saturation) at ``headings`` placements over [0°, 180°), in two lean classes:
 * ``settled``: from the plan lean and the corners of a small band around it
   (:attr:`~gracenav.policies.CatchOptions.settled_lean`), with a narrow D'; usable
   only when the measured lean is within that band;
-* ``still``: the settled paths from a smaller S and G (half the palette's G) and the
-  corners of a tight band (:attr:`~gracenav.policies.CatchOptions.still_lean`), with
-  a D' half the settled one: the error from S, not the lean band, then sets D'. They
-  serve states at the plan lean (starts, and the position states coverage counts).
+* ``still``: from a smaller S and G (half the palette's G) and the corners of a tight
+  band (:attr:`~gracenav.policies.CatchOptions.still_lean`), with a D' half the
+  settled one: the error from S, not the lean band, then sets D'. Their paths may
+  lean and pull harder (``still_max_lean``, ``still_torque_shares``), as the feedback
+  has little to correct. They serve states at the plan lean (starts, and the
+  position states coverage counts).
 
 Shifts are verified at the 0° and 90° placements from the plan lean and the settled
 band; each is verified a second time from a smaller S (a still catch's G fits in it)
@@ -116,6 +118,20 @@ _SPEED_WINDOW = 0.16
 _SWEEP_STEP = 0.004
 #: Grid points whose ways onto a rest trim are remembered (then forgotten at once).
 _HANDOVER_CACHE = 100_000
+#: Two-shift ways from a grid point: first shifts tried, and those with a way on
+#: after which the search stops (see Capture._handovers).
+_CHAIN_TRIES = 48
+_CHAIN_FIRSTS = 4
+#: A way from a grid point onto a rest trim: (shifts' duration, shift indices, rest row).
+_Way = tuple[float, tuple[int, ...], int]
+
+
+def _remember(
+    cache: dict[tuple[int, int, bool], list[_Way]], key: tuple[int, int, bool], ways: list[_Way]
+) -> None:
+    if len(cache) >= _HANDOVER_CACHE:  # a long run on a large map
+        cache.clear()
+    cache[key] = ways
 
 
 def catch_label(speed: float, lean_class: str, scale: float) -> str:
@@ -227,9 +243,10 @@ def catch_primitives(
     and one smooth trapezoidal deceleration
     (:class:`~gracenav.shape_planner.BrakeReference`) per ramp of ``options.ramps`` and
     torque share of the class, each of the shortest T feasible with the class's lean
-    (``max_lean`` or ``settled_max_lean``) and torque (the share of the limit; the
-    whole limit for the nonic). Both stop v T/2 from their start. At speed 0, the rest
-    hold of the tail's duration. Empty if nothing is feasible within ``max_duration``.
+    (``max_lean``, ``settled_max_lean`` or ``still_max_lean``) and torque (the share
+    of the limit; the whole limit for the nonic). Both stop v T/2 from their start. At
+    speed 0, the rest hold of the tail's duration. Empty if nothing is feasible within
+    ``max_duration``.
     """
     from gracenav.shape_planner import BrakeReference, NonicReference
 
@@ -237,10 +254,13 @@ def catch_primitives(
     if speed == 0.0:
         return [_rest_primitive(name, options.tail)]
     v = np.array([speed, 0.0])
-    lean = options.max_lean if lean_class == PUSHED else options.settled_max_lean
+    lean, shares = {
+        PUSHED: (options.max_lean, options.pushed_torque_shares),
+        SETTLED: (options.settled_max_lean, options.settled_torque_shares),
+        STILL: (options.still_max_lean, options.still_torque_shares),
+    }[lean_class]
     opts = replace(options, max_lean=lean)
     limit = gains.params.torque_limit
-    shares = options.pushed_torque_shares if lean_class == PUSHED else options.settled_torque_shares
     zero = np.zeros(2)
     found = [
         _plan_to_rest(
@@ -386,15 +406,14 @@ def catch_policies(
     sizes (``options.catch.scales``, largest first) and candidate paths
     (:func:`catch_primitives`, shortest reach first, at most ``max_candidates`` per
     size) that verifies, preceded by the candidates that failed (reports attached).
-    A still catch follows the settled paths, with S = G = ``still_scale`` times the
-    palette's G. Empty if the braking cannot be planned."""
+    A still catch has S = G = ``still_scale`` times the palette's G. Empty if the
+    braking cannot be planned."""
     opts = options.catch
     assert opts is not None
     goal = shape.radii(options.goal_position_extent)
     small = DomainRadii(goal.position * opts.still_scale, goal.velocity * opts.still_scale)
     still_outer = (opts.still_outer[0], opts.still_outer[0], opts.still_outer[1])
     out: list[MotionPolicy] = []
-    paths: dict[str, list[SampledPrimitive]] = {}
     for cls, (along, across, fv), leans, scales, base, unit in (
         (PUSHED, opts.pushed_outer, push_leans, opts.scales, goal, 1.0),
         (SETTLED, opts.settled_outer, settled_leans(opts), opts.settled_scales, goal, 1.0),
@@ -402,10 +421,7 @@ def catch_policies(
     ):
         if cls not in classes:
             continue
-        path_class = PUSHED if cls == PUSHED else SETTLED
-        if path_class not in paths:
-            paths[path_class] = catch_primitives(speed, opts, gains, lean_class=path_class)
-        prims = paths[path_class][: opts.max_candidates]
+        prims = catch_primitives(speed, opts, gains, lean_class=cls)[: opts.max_candidates]
         for scale, prim in itertools.product(sorted(scales, reverse=True), prims):
             pol = _fixed_outer_policy(
                 prim,
@@ -605,25 +621,25 @@ class CapturePlan:
     ----------
     catch : PlacedPolicy
         Placed at the state: its S contains it.
-    shift : PlacedPolicy or None
-        From the catch's end onto ``rest_row``'s point (None if the catch ends there);
-        its S ⊇ the catch's G.
+    shifts : tuple of PlacedPolicy
+        From the catch's end onto ``rest_row``'s point, in the order they run (none if
+        the catch ends there, at most two); each one's S ⊇ the G before it.
     rest_row : int
         The library's rest trim the robot is left on (its S ⊇ the last G).
     cost : float
-        Duration of the catch and the shift plus the rest trim's cost-to-go (s); 0 for
+        Duration of the catch and the shifts plus the rest trim's cost-to-go (s); 0 for
         the cost-to-go when planned without a tree.
     """
 
     catch: PlacedPolicy
-    shift: PlacedPolicy | None
+    shifts: tuple[PlacedPolicy, ...]
     rest_row: int
     cost: float
 
     @property
     def policies(self) -> tuple[PlacedPolicy, ...]:
         """The placed policies in the order they run."""
-        return (self.catch,) if self.shift is None else (self.catch, self.shift)
+        return (self.catch, *self.shifts)
 
 
 @dataclass(frozen=True)
@@ -747,7 +763,8 @@ class Capture:
         for key in np.unique(keys, axis=0):
             rows = rest[np.all(keys == key, axis=1)]
             self._rest[(int(key[0]), int(key[1]))] = rows
-        self._handover: dict[tuple[int, int, bool], list[tuple[float, int, int]]] = {}
+        self._direct_ways: dict[tuple[int, int, bool], list[_Way]] = {}
+        self._chained: dict[tuple[int, int, bool], list[_Way]] = {}
 
     @property
     def available(self) -> bool:
@@ -763,17 +780,18 @@ class Capture:
         )
         return np.asarray(ok.reshape(points.shape[:-1]), dtype=bool)
 
-    def _handovers(self, cell: tuple[int, int], still: bool) -> list[tuple[float, int, int]]:
-        """(shift duration, shift index or −1, rest row) of every way from grid point
-        ``cell`` onto a rest trim: the rest trims at the point itself, then those a
-        shift with a clear swept D' reaches (still shifts too after a ``still`` catch)."""
+    def _direct(self, cell: tuple[int, int], still: bool) -> list[_Way]:
+        """(shift duration, shift indices, rest row) of every way from grid point
+        ``cell`` onto a rest trim with at most one shift: the rest trims at the point
+        itself, then those a shift with a clear swept D' reaches (still shifts too after
+        a ``still`` catch)."""
         key = (cell[0], cell[1], still)
-        got = self._handover.get(key)
+        got = self._direct_ways.get(key)
         if got is not None:
             return got
-        out: list[tuple[float, int, int]] = []
+        out: list[_Way] = []
         for row in self._rest.get(cell, ()):
-            out.append((0.0, -1, int(row)))
+            out.append((0.0, (), int(row)))
         q = self.origin + np.asarray(cell, dtype=float) * self.grid
         ends = self._shift_cells + np.asarray(cell, dtype=np.int64)
         found = [
@@ -786,11 +804,46 @@ class Capture:
             for k in ks[clear]:
                 rows = found[int(k)]
                 assert rows is not None
-                out.extend((float(self._shift_time[k]), int(k), int(row)) for row in rows)
-        if len(self._handover) >= _HANDOVER_CACHE:  # a long run on a large map
-            self._handover.clear()
-        self._handover[key] = out
+                out.extend((float(self._shift_time[k]), (int(k),), int(row)) for row in rows)
+        _remember(self._direct_ways, key, out)
         return out
+
+    def _handovers(self, cell: tuple[int, int], still: bool) -> list[_Way]:
+        """(shifts' duration, shift indices, rest row) of the ways from grid point
+        ``cell`` onto a rest trim: those of :meth:`_direct`; from a point where there
+        are none (a catch ending too near a wall for a shift toward a rest trim, or in a
+        passage without one), two shifts: a first one with a clear swept D' (a still
+        one too after a ``still`` catch), then a plain one, whose S (``shift_scale``
+        G) holds the first one's G. The first shifts are tried from the one ending
+        with the most clearance, until ``_CHAIN_FIRSTS`` of them have a way on or
+        ``_CHAIN_TRIES`` have been tried."""
+        out = self._direct(cell, still)
+        if out:
+            return out
+        key = (cell[0], cell[1], still)
+        got = self._chained.get(key)
+        if got is not None:
+            return got
+        q = self.origin + np.asarray(cell, dtype=float) * self.grid
+        ks = np.flatnonzero(~self._shift_still | still)
+        ks = ks[np.all(self._clear(q + self._shift_path[ks], self._shift_reach[ks]), axis=1)]
+        ends = self._shift_cells[ks] + np.asarray(cell, dtype=np.int64)
+        room = self.library.world_map.clearance(self.origin + ends * self.grid)
+        best: dict[int, _Way] = {}
+        firsts = 0
+        for n in np.argsort(-room, kind="stable")[:_CHAIN_TRIES]:
+            k = int(ks[n])
+            onward = self._direct((int(ends[n, 0]), int(ends[n, 1])), False)
+            for t2, ks2, row in onward:
+                way = (float(self._shift_time[k]) + t2, (k, *ks2), row)
+                if row not in best or way[0] < best[row][0]:
+                    best[row] = way
+            firsts += bool(onward)
+            if firsts >= _CHAIN_FIRSTS:
+                break
+        chained = sorted(best.values())
+        _remember(self._chained, key, chained)
+        return chained
 
     def _candidates(
         self, state: FloatArray, classes: tuple[str, ...], flat: FloatArray | None = None
@@ -892,26 +945,27 @@ class Capture:
             ways = self._handovers(cell, m.lean_class == STILL)
             if settle is not None and ways:
                 settle(np.array(sorted({w[2] for w in ways}), dtype=np.int64))
-            for shift_t, k, row in ways:
+            for shift_t, ks, row in ways:
                 togo = 0.0 if cost_to_go is None else float(cost_to_go[row])
                 if not math.isfinite(togo):
                     continue
                 total = m.policy.duration + shift_t + togo
                 key = (total, rank, value)
                 if best is None or key < best:
-                    best, chosen = key, (m, heading, start, cell, k, row)
+                    best, chosen = key, (m, heading, start, cell, ks, row)
             if cost_to_go is None and chosen is not None:
                 break
         if chosen is None or best is None:
             return None
-        m, heading, start, cell, k, row = chosen
+        m, heading, start, cell, ks, row = chosen
         catch = PlacedPolicy(m.policy, heading, np.asarray(start, dtype=float))
-        shift = None
-        if k >= 0:
+        shifts = []
+        at = np.asarray(cell, dtype=np.int64)
+        for k in ks:
             pol, angle = self._shifts[k]
-            q = self.origin + np.asarray(cell, dtype=float) * self.grid
-            shift = PlacedPolicy(pol, angle, q)
-        return CapturePlan(catch, shift, row, best[0])
+            shifts.append(PlacedPolicy(pol, angle, self.origin + at * self.grid))
+            at = at + self._shift_cells[k]
+        return CapturePlan(catch, tuple(shifts), row, best[0])
 
     def covers(self, states: ArrayLike) -> BoolArray:
         """Whether a capture plan (with the plan lean: settled and still catches too)

@@ -821,10 +821,21 @@ class HybridController:
         terminal_seq = terminals * loops
         goal_states = [np.asarray(g, dtype=float) for g in goals] * loops
         k_goal = 0
-        if current < 0:
+        captured: list[PlacedPolicy] = []  # placed catch and shifts still to run
+        capture_plans: list[tuple[float, CapturePlan]] = []
+        capture_row = -1  # the rest trim a capture ends on
+        if current < 0 and options.capture and dyn is None:
+            # A start inside no library S may lie in a catch's (coverage counts it).
+            plan = self.capture_plan(x, tree)
+            if plan is not None:
+                capture_plans.append((0.0, plan))
+                captured, capture_row = list(plan.policies), plan.rest_row
+                current = CAPTURE
+        if current < 0 and not captured:
             hits = self.library.start_domain_contains(p[None, :])
             why = (
-                "no library policy's start domain contains the start state (outside coverage)"
+                "no library policy's start domain contains the start state, and no catch "
+                "placed there clears the obstacles (outside coverage)"
                 if hits.nnz == 0
                 else "the goal cannot be reached from any policy whose start domain contains it"
             )
@@ -840,9 +851,6 @@ class HybridController:
         stalled = 0  # consecutive policies that ended at their first tick
         status = TaskStatus.TIMEOUT
         offset = 0  # ticks of the current policy already run (moving obstacles)
-        captured: list[PlacedPolicy] = []  # placed catch and shift still to run
-        capture_plans: list[tuple[float, CapturePlan]] = []
-        capture_row = -1  # the rest trim a capture ends on
         while ticks < max_ticks:
             term = terminal_seq[k_goal]
             if current == CAPTURE or (current == TERMINAL and term is not None):

@@ -70,6 +70,7 @@ __all__ = [
     "SampledPrimitive",
     "VerificationOptions",
     "VerificationReport",
+    "capture_point",
     "combined_report",
     "domain_shape",
     "flat_position_state",
@@ -648,11 +649,18 @@ class CatchOptions:
         from the plan lean and the settled band; D' is also at least 1.1 and 3 times S's
         (0.11 m at ``shift_scale`` 1.25).
     still_speeds : tuple of float
-        Speeds (m/s) of the catches of the *still* class: the settled class's paths,
-        verified from a small S (``still_scale``) with the lean within ``still_lean`` of
-        the plan's, so that their D' (``still_outer``) is about half the settled one.
-        They serve states whose lean is the plan's (starts, and the position states
-        coverage counts), near walls.
+        Speeds (m/s) of the catches of the *still* class: verified from a small S
+        (``still_scale``) with the lean within ``still_lean`` of the plan's, so that
+        their D' (``still_outer``) is about half the settled one. They serve states
+        whose lean is the plan's (starts, and the position states coverage counts),
+        near walls.
+    still_max_lean : float
+        Largest planned body tilt of a still catch (rad): the tight band leaves the
+        feedback little to correct.
+    still_torque_shares : tuple of float
+        Largest planned torques of the still class's trapezoidal catches, as shares of
+        the torque limit: a larger share than the settled class's ramps the braking
+        lean up sooner, so the path reaches less far ahead.
     still_scale : float
         S and G of a still catch, as a share of the palette's G (in (0, 1]).
     still_outer : tuple of float
@@ -693,6 +701,8 @@ class CatchOptions:
     still_speeds: tuple[float, ...] = (
         0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5, 0.55, 0.6,
     )  # fmt: skip
+    still_max_lean: float = math.radians(7.5)
+    still_torque_shares: tuple[float, ...] = (0.9, 0.8)
     still_scale: float = 0.5
     still_outer: tuple[float, float] = (0.05, 0.5)
     still_lean: tuple[float, float] = (math.radians(0.1), math.radians(0.5))
@@ -713,6 +723,7 @@ class CatchOptions:
             "settled_lean",
             "shift_outer",
             "still_speeds",
+            "still_torque_shares",
             "still_outer",
             "still_lean",
             "still_shift_outer",
@@ -722,7 +733,11 @@ class CatchOptions:
             raise ConfigError(f"catch speeds must be >= 0, got {self.speeds}")
         if any(r <= 0 for r in self.ramps):
             raise ConfigError(f"catch ramps must be > 0 s, got {self.ramps}")
-        for shares in (self.pushed_torque_shares, self.settled_torque_shares):
+        for shares in (
+            self.pushed_torque_shares,
+            self.settled_torque_shares,
+            self.still_torque_shares,
+        ):
             if not all(0 < f <= 1 for f in shares):
                 raise ConfigError(f"catch torque shares must be in (0, 1], got {shares}")
         if any(v <= 0 for v in self.settled_speeds):
@@ -1160,6 +1175,25 @@ def flat_position_state(
     p[..., 0:2] += length * np.asarray(lean, dtype=float)
     p[..., 2:4] += length * np.asarray(lean_rate, dtype=float)
     return p
+
+
+def capture_point(flat_state: ArrayLike, params: BallbotParams) -> FloatArray:
+    """The instantaneous capture point ξ = y + ẏ/ω (m) per axis of flat-output position
+    states (..., 4) (:func:`flat_position_state`), shape (..., 2).
+
+    For the linearised model ÿ = κ φ (:func:`~gracenav.shape_planner.flat_output_gain`)
+    and y − x = L φ give ÿ = ω² (y − x), ω = √(κ/L), with x the ball; so ξ̇ = ω (ξ − x).
+    A motion that comes to rest keeps ξ bounded, which needs
+    ξ(0) = ω ∫₀^∞ e^(−ωt) x(t) dt: a weighted mean of the ball's positions to come.
+    Whatever the controller, the ball's path from a state therefore reaches at least
+    as far as its capture point along every direction (ξ lies in the path's convex
+    hull): a bound on how near an obstacle a moving robot can stop.
+    """
+    from gracenav.shape_planner import flat_output_gain, flat_output_lengths
+
+    omega = np.sqrt(flat_output_gain(params) / flat_output_lengths(params))
+    y = np.asarray(flat_state, dtype=float)
+    return np.asarray(y[..., 0:2] + y[..., 2:4] / omega, dtype=float)
 
 
 def verify_policy(
