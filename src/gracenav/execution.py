@@ -157,7 +157,8 @@ class ExecutionOptions:
         gracenav extension: the paper assumes 100 % coverage and stops the task).
     capture : bool
         When no library policy's start domain contains the state, place a verified
-        catch at it (:mod:`gracenav.capture`) before falling back to balancing mode.
+        catch at it (:mod:`gracenav.capture`) before falling back to balancing mode,
+        and start with one when none contains the start state.
     sensing : ObstacleSensing
         Range, period and margin of the moving-obstacle sensing (used only when a run
         has moving obstacles; :mod:`gracenav.replanning`).
