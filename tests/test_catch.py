@@ -459,3 +459,18 @@ def test_capture_point_bounds_how_far_every_catch_reaches(palette) -> None:
             assert ratio <= 2.0, pol.label
         checked += 1
     assert checked >= 40
+
+
+def test_catch_options_are_checked() -> None:
+    """Bad catch options are refused with a message that names them; the defaults
+    round-trip through the palette file's dict."""
+    from gracenav.errors import ConfigError
+    from gracenav.policies import CatchOptions
+
+    with pytest.raises(ConfigError, match="plan leans"):
+        CatchOptions(still_max_lean=0.0)
+    with pytest.raises(ConfigError, match="torque shares"):
+        CatchOptions(still_torque_shares=(1.2,))
+    with pytest.raises(ConfigError, match="still_scale"):
+        CatchOptions(still_scale=0.7, still_shift_scale=0.6)
+    assert CatchOptions.from_dict(dataclasses.asdict(CatchOptions())) == CatchOptions()

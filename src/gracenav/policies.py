@@ -733,6 +733,9 @@ class CatchOptions:
             raise ConfigError(f"catch speeds must be >= 0, got {self.speeds}")
         if any(r <= 0 for r in self.ramps):
             raise ConfigError(f"catch ramps must be > 0 s, got {self.ramps}")
+        for lean in (self.max_lean, self.settled_max_lean, self.still_max_lean):
+            if not 0 < lean < math.pi / 2:
+                raise ConfigError(f"catch plan leans must be in (0, π/2) rad, got {lean}")
         for shares in (
             self.pushed_torque_shares,
             self.settled_torque_shares,
