@@ -227,3 +227,24 @@ def test_forced_file_defaults_to_what_it_was_built_for(tmp_path) -> None:
     )
     with pytest.raises(CacheError, match=r"gains differ .* relative 1\.0e-06"):
         load_palette(edited.save(tmp_path / "edited.npz"))
+
+
+def test_stored_members_are_the_zip_members_and_compressed_ones_are_refused() -> None:
+    """The one-pass reader returns every member's bytes exactly as zipfile reads them
+    (an independent reader, which checks each CRC itself), and refuses what
+    ``np.savez`` never writes."""
+    import io
+    import zipfile
+
+    from gracenav.palette import _stored_members
+
+    data = shipped_palette_path().read_bytes()
+    members = _stored_members(data)
+    with zipfile.ZipFile(io.BytesIO(data)) as archive:
+        assert sorted(members) == sorted(archive.namelist())
+        for name in archive.namelist():
+            assert bytes(members[name]) == archive.read(name)
+    buf = io.BytesIO()
+    np.savez_compressed(buf, a=np.arange(10.0))
+    with pytest.raises(ValueError, match="compressed"):
+        _stored_members(buf.getvalue())
