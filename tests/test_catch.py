@@ -4,6 +4,7 @@ lattice, planning, and recovery from pushes with the paper's hybrid controller."
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from pathlib import Path
 
@@ -81,16 +82,26 @@ def test_palette_has_catches_of_both_lean_classes_and_every_shift(palette) -> No
         assert pol.report is not None and pol.report.passed
         assert pol.capture  # fixed D' around the reference, started only when needed
         assert pol.flat_start == (f"[{PUSHED}," in pol.label)
-    # Catches decelerate along +x to rest: smooth-step stop v T / 2, then the rest tail.
+    # Catches decelerate along +x to rest, then the rest tail: the stop is the integral
+    # of the velocity, and v T / 2 for the symmetric decelerations (the nonic and the
+    # trapezoids); the shortest-reach brakings run ahead of their stop first.
+    shortest = 0
     for pol in palette.catches:
         prim = pol.primitive
         v = float(prim.start_velocity[0])
         assert prim.displacement[1] == pytest.approx(0.0, abs=1e-12)
         np.testing.assert_allclose(prim.position[-1, 2:], 0.0, atol=1e-12)
         assert prim.position[0, 2] == pytest.approx(v, abs=1e-12)
+        travel = float(np.sum(prim.position[1:, 2] + prim.position[:-1, 2]) * prim.dt / 2)
+        assert prim.displacement[0] == pytest.approx(travel, rel=1e-4, abs=1e-6)
         if v > 0:
             brake = np.flatnonzero(np.abs(prim.position[:, 2]) > 0)[-1] * prim.dt
-            assert prim.displacement[0] == pytest.approx(v * (brake + prim.dt) / 2, rel=0.02)
+            if "shortest" in prim.name:
+                shortest += 1
+                assert np.max(prim.position[:, 0]) > prim.displacement[0]
+            else:
+                assert prim.displacement[0] == pytest.approx(v * (brake + prim.dt) / 2, rel=0.02)
+    assert shortest >= 36  # the kept catch of almost every speed and class (40 of 46)
 
 
 def test_catch_candidates_are_feasible_and_the_trapezoid_stops_shorter(palette) -> None:
@@ -100,16 +111,18 @@ def test_catch_candidates_are_feasible_and_the_trapezoid_stops_shorter(palette) 
     prims = catch_primitives(0.5, opts, gains, lean_class=SETTLED)
     ahead = [float(np.max(p.position[:, 0])) for p in prims]
     assert ahead == sorted(ahead)  # verified in this order
-    nonic = [p for p in prims if "ramp" not in p.name]
+    nonic = [p for p in prims if "ramp" not in p.name and "shortest" not in p.name]
     assert len(nonic) == 1 and len(prims) > 1
+    assert "shortest" in prims[0].name  # the linear program's braking reaches least far
     # The smooth trapezoidal deceleration reaches at least 10 % less far ahead than the
     # nonic smooth step at the same peak lean (measured: 0.32 m against 0.38 m).
     assert ahead[0] < 0.9 * float(np.max(nonic[0].position[:, 0]))
     for p in prims:
         brake = (np.flatnonzero(np.abs(p.position[:, 2]) > 0)[-1] + 1) * p.dt
-        assert p.displacement[0] == pytest.approx(0.5 * brake / 2, rel=0.02)  # stops v T/2
+        if "shortest" not in p.name:
+            assert p.displacement[0] == pytest.approx(0.5 * brake / 2, rel=0.02)  # v T/2
         assert np.max(np.abs(p.states[:, 2])) <= opts.settled_max_lean + 1e-9
-        share = 1.0 if "ramp" not in p.name else max(opts.settled_torque_shares)
+        share = 1.0 if p.name == nonic[0].name else max(opts.settled_torque_shares)
         assert np.max(np.abs(p.inputs)) <= share * limit * (1 + 1e-9)
     kept = _catch(palette, 0.5, SETTLED).primitive
     assert kept.name in {p.name for p in prims[: opts.max_candidates]}
@@ -389,8 +402,8 @@ def test_still_catches_chain_into_still_shifts_and_serve_only_the_plan_lean(
             continue
         if capture.plan(state, lean_deviation=(math.radians(0.3), 0.0)) is None:
             only_still += 1
-        for pol in plan.policies[1:]:
-            assert pol.start_domain.contains_domain(plan.catch.goal_domain)
+        for before, pol in itertools.pairwise(plan.policies):  # catch ⪰ shift (⪰ shift)
+            assert pol.start_domain.contains_domain(before.goal_domain)
         tilted = capture.plan(state, lean_deviation=(math.radians(1.0), 0.0))
         assert tilted is None or _lean_class(tilted.catch.policy) == PUSHED
     assert only_still >= 20
@@ -435,9 +448,10 @@ def test_flat_position_state_moves_the_ball_state_by_the_lean(palette) -> None:
 def test_capture_point_bounds_how_far_every_catch_reaches(palette) -> None:
     """The flat output y = x + L φ of every catch planned on the 3D model obeys the
     linearised law ÿ = κ φ that the capture point rests on (to 5 % of the peak;
-    measured ≤ 4.6 %), and no catch stops its ball nearer than the capture point of
+    measured ≤ 3.2 %), and no catch stops its ball nearer than the capture point of
     its start, v/ω ahead (a bound for every controller). The still catches, which
-    act nearest walls, reach at most twice as far (measured 1.69-1.86 times)."""
+    act nearest walls and brake along the shortest-reach reference, reach at most
+    1.7 times as far (measured 1.31-1.61 times; 1.69-1.86 with trapezoids)."""
     from gracenav.policies import capture_point
     from gracenav.shape_planner import flat_output_gain, flat_output_lengths
 
@@ -459,7 +473,7 @@ def test_capture_point_bounds_how_far_every_catch_reaches(palette) -> None:
         ratio = float(np.max(prim.position[:, 0])) / float(xi[0])
         assert ratio >= 1.0, pol.label
         if f"[{STILL}," in pol.label:
-            assert ratio <= 2.0, pol.label
+            assert ratio <= 1.7, pol.label
         checked += 1
     assert checked >= 40
 

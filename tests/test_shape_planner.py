@@ -6,9 +6,12 @@ import math
 
 import numpy as np
 import pytest
+import scipy.linalg
+from scipy.optimize import linprog
 
 from gracenav.errors import ConfigError
 from gracenav.model.ballbot3d import Ballbot3D
+from gracenav.model.planar import PlanarBallbot
 from gracenav.params import BallbotParams
 from gracenav.shape_planner import (
     BrakeReference,
@@ -16,6 +19,7 @@ from gracenav.shape_planner import (
     ShapePlannerOptions,
     ShapePlannerResult,
     ShapePlannerStatus,
+    ShortestBrakeReference,
     flat_output_gain,
     flat_output_lengths,
     plan_shape_trajectory,
@@ -110,6 +114,125 @@ def test_a_trapezoidal_brake_stops_shorter_than_the_nonic_at_the_same_peak_lean(
     assert res.converged
     end = res.trajectory.sample(np.array([1.25]))
     np.testing.assert_allclose(end.position[0, :2], [v * 1.25 / 2, 0.0], atol=1e-6)
+
+
+def _discrete_shortest_stop(speed: float, max_lean: float, max_torque: float) -> float:
+    """Independent bound: the least farthest ball position of the planar model
+    linearised about upright (viscous friction) from ``speed`` at upright rest lean to
+    rest within 3 s, the torque held for 10 ms steps (exact discretisation), the lean
+    and torque (Coulomb friction added) limited at the steps: a linear program on the
+    state-space model, with no spline and no flat output."""
+    model = PlanarBallbot(PARAMS, "x")
+    a, b = model.linearize(viscous=True)
+    dt, n = 0.01, 300
+    block = np.zeros((5, 5))
+    block[:4, :4], block[:4, 4:] = a * dt, b * dt
+    e = scipy.linalg.expm(block)
+    ad, bd = e[:4, :4], e[:4, 4]
+    x0 = np.array([0.0, 0.0, speed / PARAMS.ball_radius, 0.0])
+    powers = [np.eye(4)]
+    for _ in range(n):
+        powers.append(ad @ powers[-1])
+    free = np.array([p @ x0 for p in powers])
+    forced = np.zeros((n + 1, 4, n))
+    for k in range(1, n + 1):
+        for j in range(k):
+            forced[k, :, j] = powers[k - 1 - j] @ bd
+    r = PARAMS.ball_radius
+    ball = r * (forced[1:, 0] + forced[1:, 1])
+    ball0 = r * (free[1:, 0] + free[1:, 1])
+    col = np.ones((n, 1))
+    zero = np.zeros((n, 1))
+    a_ub = np.vstack(
+        [
+            np.hstack([ball, -col]),
+            np.hstack([forced[1:, 1], zero]),
+            np.hstack([-forced[1:, 1], zero]),
+        ]
+    )
+    b_ub = np.concatenate([-ball0, max_lean - free[1:, 1], max_lean + free[1:, 1]])
+    a_eq = np.hstack([forced[n, 1:], np.zeros((3, 1))])
+    room = max_torque - PARAMS.coulomb_friction
+    cost = np.zeros(n + 1)
+    cost[-1] = 1.0
+    res = linprog(
+        cost,
+        a_ub,
+        b_ub,
+        a_eq,
+        -free[n, 1:],
+        bounds=[(-room, room)] * n + [(None, None)],
+        method="highs",
+    )
+    assert res.status == 0
+    return float(res.x[-1])
+
+
+@pytest.mark.parametrize("speed", [0.35, 0.6])
+def test_shortest_brake_meets_its_limits_and_nears_the_discrete_optimum(speed: float) -> None:
+    lean, torque = math.radians(7.5), 52.0
+    ref = ShortestBrakeReference.plan(1.5, (speed, 0.0), PARAMS, max_lean=lean, max_torque=torque)
+    assert ref is not None
+    ends = np.array([0.0, 1.5])
+    np.testing.assert_allclose(ref.value(ends)[0], 0.0, atol=1e-12)
+    np.testing.assert_allclose(ref.value(ends, 1), [[speed, 0.0], [0.0, 0.0]], atol=1e-9)
+    for order in (2, 3, 4):  # trims at both ends
+        np.testing.assert_allclose(ref.value(ends, order), 0.0, atol=1e-9)
+    tt = np.array([0.05, 0.31, 0.77, 1.2])
+    for order in range(4):
+        fd = (ref.value(tt + 1e-5, order) - ref.value(tt - 1e-5, order)) / 2e-5
+        np.testing.assert_allclose(fd, ref.value(tt, order + 1), rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(ref.value([2.0]), ref.value([1.5]), atol=1e-12)  # at rest
+    # The planner's first step on the linearised model is the flat solution itself: the
+    # lean is ÿ/κ (exactly when the lean-acceleration penalty is off), and lean and
+    # torque (friction included) stay within the limits.
+    res = plan_shape_trajectory(
+        ref, PARAMS, model="linear", options=ShapePlannerOptions(regularization=0.0)
+    )
+    assert res.converged
+    s = res.trajectory.sample(_ticks(1.5))
+    kappa = flat_output_gain(PARAMS)
+    np.testing.assert_allclose(s.states[:, 2], ref.value(_ticks(1.5), 2)[:, 0] / kappa, atol=1e-7)
+    # (the limits hold at 256 samples per second; between them, to 0.01 % and 0.1 %)
+    assert res.peak_lean <= lean * (1.0 + 1e-4)
+    assert res.peak_torque <= torque * (1.0 + 1e-3)
+    reach = float(np.max(s.position[:, 0]))
+    # No plan can stop short of the capture point v/ω; the linear program over the
+    # lean spline cannot beat the free torque sequence, and the spline costs little.
+    omega = math.sqrt(kappa / flat_output_lengths(PARAMS)[0])
+    bound = _discrete_shortest_stop(speed, lean, torque)
+    assert speed / omega < bound
+    assert bound - 2e-3 <= reach <= 1.15 * bound
+    # The smooth trapezoid at the same limits (its shortest feasible T on this model)
+    # reaches at least 15 % farther.
+    trapezoid = []
+    for ramp in (0.2, 0.3, 0.45):
+        for t in np.arange(math.ceil(128 * ramp) / 64, 3.0, 1 / 64):
+            brake = BrakeReference(float(t), np.array([speed, 0.0]), ramp)
+            plan = plan_shape_trajectory(brake, PARAMS, model="linear")
+            if plan.peak_lean <= lean and plan.peak_torque <= torque:
+                trapezoid.append(float(np.max(plan.trajectory.sample(_ticks(t)).position[:, 0])))
+                break
+    assert reach < 0.87 * min(trapezoid)
+
+
+def test_shortest_brake_direction_and_infeasible_limits() -> None:
+    v0 = np.array([0.3, -0.4])
+    ref = ShortestBrakeReference.plan(1.5, v0, PARAMS, max_lean=0.1, max_torque=50.0)
+    along_x = ShortestBrakeReference.plan(1.5, (0.5, 0.0), PARAMS, max_lean=0.1, max_torque=50.0)
+    assert ref is not None and along_x is not None
+    t = np.linspace(0.0, 2.0, 401)
+    for order in range(5):  # the same braking, turned to v0's heading
+        np.testing.assert_allclose(
+            ref.value(t, order), along_x.value(t, order)[:, :1] * v0 / 0.5, atol=1e-9
+        )
+    # 1 N m cannot hold the lean the braking needs (nor overcome Coulomb friction)
+    assert ShortestBrakeReference.plan(1.5, v0, PARAMS, max_lean=0.1, max_torque=1.0) is None
+    for bad in ((0.0, v0), (1.5, (0.0, 0.0)), (float("inf"), v0)):
+        with pytest.raises(ConfigError, match="positive duration and speed"):
+            ShortestBrakeReference.plan(bad[0], bad[1], PARAMS, max_lean=0.1, max_torque=50.0)
+    with pytest.raises(ConfigError, match="derivatives 0-4"):
+        ref.value([0.1], 5)
 
 
 def test_flat_output_constants_match_the_design_values() -> None:

@@ -10,9 +10,13 @@ grid (spacing d / ``grid_divisions``, anchored where the library's lattice is). 
 start domain S is small (the palette's shape at 1–1.5 G) and only has to hold the
 speed difference to the nearest catch and a grid cell of placement; its outer
 domain D' is a tube of fixed extents around the braking path, much narrower than a
-capture regulator's disc. A *shift* (a rest-to-rest maneuver of up to
-``shift_radius`` between grid points, its S ⊇ G) then brings the robot onto a
-lattice rest trim of the library, whose S ⊇ G: catch ⪰ shift ⪰ rest trim.
+capture regulator's disc. Near a wall what counts is how far ahead the braking
+goes; the candidate that goes least far is usually the shortest-reach braking
+(:class:`~gracenav.shape_planner.ShortestBrakeReference`), which first drives the
+ball forward to lean the body back and then brakes at the torque share. A *shift*
+(a rest-to-rest maneuver of up to ``shift_radius`` between grid points, its S ⊇ G)
+then brings the robot onto a lattice rest trim of the library, whose S ⊇ G:
+catch ⪰ shift ⪰ rest trim.
 
 Catches are verified like every palette policy (:func:`gracenav.policies.verify_policy`:
 boundary states of S, D' at every tick, G at the end, lean and torque limits, no
@@ -110,6 +114,12 @@ STILL = "still"
 
 #: Planned durations are whole multiples of this (s): 8 control ticks.
 _DURATION_STEP = 1.0 / 128.0
+#: Limits of the shortest-reach braking's linear program, as shares of the class's
+#: (:class:`~gracenav.shape_planner.ShortestBrakeReference`).
+_BRAKE_DERATE = 0.97
+#: Its duration is at least this times (1 + speed in m/s) (s): its reach then no longer
+#: shrinks with more time (within 0.5 mm at 0.35-0.6 m/s).
+_BRAKE_SETTLE = 1.0
 #: A catch is tried for states whose speed is within this of its own (m/s).
 _SPEED_WINDOW = 0.16
 #: Largest arc (m) between the samples of a catch's or shift's swept D' checked for
@@ -173,7 +183,7 @@ def _rest_primitive(name: str, duration: float) -> SampledPrimitive:
 
 
 def _plan_to_rest(
-    reference_of: Callable[[float], PositionReference],
+    reference_of: Callable[[float], PositionReference | None],
     velocity: FloatArray,
     options: CatchOptions,
     torque_limit: float,
@@ -194,6 +204,8 @@ def _plan_to_rest(
 
     def feasible(t: float) -> object | None:
         ref = reference_of(t)
+        if ref is None:  # no reference meets the limits at this duration
+            return None
         # Too short a T diverges; the result is then rejected, not a user's concern.
         with np.errstate(over="ignore", invalid="ignore"):
             res = plan_shape_trajectory(ref, params, model="3d")
@@ -218,10 +230,11 @@ def _plan_to_rest(
         else:
             lo = mid
     res = feasible(hi)
-    assert res is not None
+    ref = reference_of(hi)
+    assert res is not None and ref is not None
     return sampled_with_rest_tail(
         res,  # type: ignore[arg-type]
-        reference_of(hi).duration,
+        ref.duration,
         options.tail,
         name=name,
         start_velocity=velocity,
@@ -239,16 +252,17 @@ def catch_primitives(
     """The candidate catches from ``speed`` (m/s) along +x to rest, each followed by the
     rest tail, ordered by how far ahead their path reaches (ties: shorter first).
 
-    The candidates are the C⁴ nonic smooth step (the nonic from (0, v) to (v T/2, 0))
-    and one smooth trapezoidal deceleration
-    (:class:`~gracenav.shape_planner.BrakeReference`) per ramp of ``options.ramps`` and
-    torque share of the class, each of the shortest T feasible with the class's lean
-    (``max_lean``, ``settled_max_lean`` or ``still_max_lean``) and torque (the share
-    of the limit; the whole limit for the nonic). Both stop v T/2 from their start. At
-    speed 0, the rest hold of the tail's duration. Empty if nothing is feasible within
-    ``max_duration``.
+    The candidates are the C⁴ nonic smooth step (the nonic from (0, v) to (v T/2, 0)),
+    and for each torque share of the class the shortest-reach braking
+    (:class:`~gracenav.shape_planner.ShortestBrakeReference`, its linear program's
+    limits 97 % of the class's, at least 1 + v s long) and one smooth trapezoidal
+    deceleration (:class:`~gracenav.shape_planner.BrakeReference`) per ramp of
+    ``options.ramps``. Each is of the shortest T feasible on the 3D model with the
+    class's lean (``max_lean``, ``settled_max_lean`` or ``still_max_lean``) and torque
+    (the share of the limit; the whole limit for the nonic). At speed 0, the rest
+    hold of the tail's duration. Empty if nothing is feasible within ``max_duration``.
     """
-    from gracenav.shape_planner import BrakeReference, NonicReference
+    from gracenav.shape_planner import BrakeReference, NonicReference, ShortestBrakeReference
 
     name = f"{CATCH_NAME}_{speed:g}_{lean_class}"
     if speed == 0.0:
@@ -273,6 +287,24 @@ def catch_primitives(
         )
     ]
     for share in shares:
+        # The linear program's limits leave 3 % for the 3D model's terms (about 1 %).
+        found.append(
+            _plan_to_rest(
+                functools.partial(
+                    ShortestBrakeReference.plan,
+                    velocity=v,
+                    params=gains.params,
+                    max_lean=_BRAKE_DERATE * lean,
+                    max_torque=_BRAKE_DERATE * share * limit,
+                ),
+                v,
+                opts,
+                share * limit,
+                gains,
+                f"{name}_shortest_torque{share:g}",
+                min_duration=max(options.min_duration, _BRAKE_SETTLE + speed * _BRAKE_SETTLE),
+            )
+        )
         for ramp in options.ramps:
             found.append(
                 _plan_to_rest(

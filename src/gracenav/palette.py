@@ -70,7 +70,7 @@ REGULATOR_NAME = "regulate"
 #: rebuilt exactly enough (see SampledPrimitive.from_coarse) when loaded.
 COARSE_STRIDE = 8
 #: Bumped whenever the planner, controller or verification code changes results.
-ALGORITHM_VERSION = "8"
+ALGORITHM_VERSION = "9"
 #: Largest relative difference (see ControllerGains.relative_difference) between a
 #: palette's stored gains and the gains requested of it that still counts as the
 #: same design. Rebuilding the gains on another numpy/scipy build changes them by

@@ -601,13 +601,15 @@ class CatchOptions:
     ramps : tuple of float
         Rise times (s) of the smooth trapezoidal decelerations
         (:class:`~gracenav.shape_planner.BrakeReference`) planned for each catch
-        besides the nonic smooth step; the candidates are verified in the order of how
-        far ahead their path reaches, and the first that verifies is kept.
+        besides the nonic smooth step and the shortest-reach braking
+        (:class:`~gracenav.shape_planner.ShortestBrakeReference`, one per torque
+        share); the candidates are verified in the order of how far ahead their path
+        reaches, and the first that verifies is kept.
     pushed_torque_shares, settled_torque_shares : tuple of float
-        Largest planned torques of a class's trapezoidal catches, as shares of the
-        torque limit (one candidate per ramp and share): the rest is left to the
-        feedback (a short ramp otherwise saturates the motor once a push's lean is
-        corrected).
+        Largest planned torques of a class's shortest-reach and trapezoidal catches, as
+        shares of the torque limit (one candidate per share, and per ramp and share):
+        the rest is left to the feedback (a short ramp otherwise saturates the motor
+        once a push's lean is corrected).
     max_candidates : int
         Candidates verified per size, shortest reach first.
     tail : float
@@ -658,9 +660,9 @@ class CatchOptions:
         Largest planned body tilt of a still catch (rad): the tight band leaves the
         feedback little to correct.
     still_torque_shares : tuple of float
-        Largest planned torques of the still class's trapezoidal catches, as shares of
-        the torque limit: a larger share than the settled class's ramps the braking
-        lean up sooner, so the path reaches less far ahead.
+        Largest planned torques of the still class's shortest-reach and trapezoidal
+        catches, as shares of the torque limit: a larger share than the settled
+        class's leans the body back sooner, so the path reaches less far ahead.
     still_scale : float
         S and G of a still catch, as a share of the palette's G (in (0, 1]).
     still_outer : tuple of float

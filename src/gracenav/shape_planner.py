@@ -70,6 +70,7 @@ __all__ = [
     "ShapePlannerResult",
     "ShapePlannerStatus",
     "ShapeTrajectory",
+    "ShortestBrakeReference",
     "TrajectorySample",
     "flat_output_gain",
     "flat_output_lengths",
@@ -237,6 +238,186 @@ class BrakeReference:
         if order > 0:
             out = np.where(np.atleast_1d(np.asarray(t, dtype=float)) > self.duration, 0.0, out)
         return np.asarray(out[:, None] * self.velocity[None, :], dtype=np.float64)
+
+
+#: Weight (m per rad) of the lean spline's second differences in the objective of
+#: :meth:`ShortestBrakeReference.plan`: it only settles the motion after the path's
+#: farthest point, which the reach alone leaves free (a few 0.1 mm of reach at most).
+_BRAKE_SMOOTHING = 1e-3
+#: Constraint samples per second of :meth:`ShortestBrakeReference.plan`.
+_BRAKE_SAMPLES = 256
+
+
+def _lean_knots(duration: float, knot_spacing: float) -> FloatArray:
+    """Knots of the planner's quintic lean B-spline on [0, ``duration``]: uniform
+    interior knots round(t_f / ``knot_spacing``) − 1 of them (at least 1)."""
+    n_int = max(1, round(duration / knot_spacing) - 1)
+    return np.concatenate(
+        [
+            np.zeros(_DEGREE + 1),
+            np.linspace(0.0, duration, n_int + 2)[1:-1],
+            np.full(_DEGREE + 1, duration),
+        ]
+    )
+
+
+@dataclass(frozen=True)
+class ShortestBrakeReference:
+    """Braking from a velocity to rest along a straight line so that the ball goes as
+    little ahead as the lean and torque limits allow.
+
+    The flat output y along the motion is y(t) = v₀ t + κ ∬φ, the lean φ a quintic
+    B-spline in the planner's own basis (knots every ``knot_spacing``, first and last
+    three coefficients zero, so the ends are trims). :meth:`plan` chooses φ by linear
+    programming on the planar model linearised about upright (plane x, viscous
+    friction; Coulomb friction is taken off the torque limit): it minimises the
+    farthest ball position x = y − L φ subject to |φ| ≤ ``max_lean`` and |τ| ≤
+    ``max_torque`` at 256 samples per second (between them they hold to 0.01 % and
+    0.1 %), and ẏ(t_f) = 0. The optimum first drives the ball *forward* to lean the
+    body back, then brakes at the torque limit. At 0.35 and 0.6 m/s (7.5°, 52 N m) it
+    goes 0.81 times as far ahead as the best smooth trapezoidal deceleration with the
+    same limits, and 1.08 times as far as the optimum over free torque sequences; the
+    capture point v₀/ω (ω = √(κ/L)) bounds any stop. The shape planner makes it
+    feasible on the 3D model; on the linearised model, without the lean-acceleration
+    penalty, it reproduces the lean exactly.
+
+    Parameters
+    ----------
+    duration : float
+        t_f (s).
+    velocity : ndarray, shape (2,)
+        Initial velocity v₀ (m/s); the reference starts at the origin.
+    knots : ndarray
+        Knots of the lean B-spline (see :func:`_lean_knots`).
+    lean : ndarray
+        Its coefficients (rad), the first and last three zero.
+    gain : float
+        κ (m/s² per rad).
+    """
+
+    duration: float
+    velocity: FloatArray
+    knots: FloatArray
+    lean: FloatArray
+    gain: float
+    _along: tuple[BSpline, ...] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        phi = BSpline(self.knots, self.lean, _DEGREE)
+        object.__setattr__(
+            self,
+            "_along",
+            (
+                phi.antiderivative(2),
+                phi.antiderivative(1),
+                phi,
+                *(phi.derivative(k) for k in (1, 2)),
+            ),
+        )
+
+    @classmethod
+    def plan(
+        cls,
+        duration: float,
+        velocity: ArrayLike,
+        params: BallbotParams,
+        *,
+        max_lean: float,
+        max_torque: float,
+        knot_spacing: float = 0.125,
+    ) -> ShortestBrakeReference | None:
+        """The shortest-reach braking of ``duration`` (s) from ``velocity`` (m/s, shape
+        (2,)) with lean at most ``max_lean`` (rad) and torque at most ``max_torque``
+        (N m) on the linearised model, or None if no lean in the basis meets them."""
+        from scipy.optimize import linprog
+
+        v0 = np.asarray(velocity, dtype=float).reshape(2)
+        speed = float(np.hypot(*v0))
+        if not (math.isfinite(duration) and duration > 0 and speed > 0):
+            raise ConfigError(
+                f"a brake needs a positive duration and speed, got {duration!r} s and {speed!r} m/s"
+            )
+        planar = PlanarBallbot(params, "x")
+        a, b, g = planar.alpha, planar.beta, planar.gamma
+        r = params.ball_radius
+        kappa = flat_output_gain(params)
+        length = planar.flat_output_length()
+        knots = _lean_knots(duration, knot_spacing)
+        nb = knots.size - _DEGREE - 1
+        free = np.eye(nb)[:, 3 : nb - 3]
+        spl = BSpline(knots, free, _DEGREE)
+        ts = np.linspace(0.0, duration, max(2, round(duration * _BRAKE_SAMPLES)) + 1)
+        phi, phid, phidd = spl(ts), spl.derivative(1)(ts), spl.derivative(2)(ts)
+        int1, int2 = spl.antiderivative(1)(ts), spl.antiderivative(2)(ts)
+        ball = kappa * int2 - length * phi  # x − v₀ t
+        theta_rate = (kappa * int1 - length * phid) / r - phid  # θ̇ − v₀/r
+        theta_acc = (b * params.gravity / r * phi - (a + g + 2.0 * b) * phidd) / (a + b)
+        torque = a * theta_acc + (a + b) * phidd + params.viscous_friction * theta_rate
+        torque_free = params.viscous_friction * speed / r
+        room = max_torque - params.coulomb_friction
+        nf = free.shape[1]
+        # Variables: lean coefficients c (nf), reach z, second-difference bounds s (nf − 2).
+        nd = max(nf - 2, 0)
+        diff = np.zeros((nd, nf))
+        for i in range(nd):
+            diff[i, i : i + 3] = (1.0, -2.0, 1.0)
+
+        def rows(m: FloatArray, z: float = 0.0, s: FloatArray | None = None) -> FloatArray:
+            out = np.zeros((m.shape[0], nf + 1 + nd))
+            out[:, :nf] = m
+            out[:, nf] = z
+            if s is not None:
+                out[:, nf + 1 :] = s
+            return out
+
+        a_ub = np.vstack(
+            [
+                rows(ball, -1.0),
+                rows(phi),
+                rows(-phi),
+                rows(torque),
+                rows(-torque),
+                rows(diff, 0.0, -np.eye(nd)),
+                rows(-diff, 0.0, -np.eye(nd)),
+            ]
+        )
+        n = ts.size
+        b_ub = np.concatenate(
+            [
+                -speed * ts,
+                np.full(2 * n, max_lean),
+                np.full(n, room - torque_free),
+                np.full(n, room + torque_free),
+                np.zeros(2 * nd),
+            ]
+        )
+        a_eq = rows(kappa * spl.antiderivative(1)(np.array([duration])))
+        cost = np.zeros(nf + 1 + nd)
+        cost[nf] = 1.0
+        cost[nf + 1 :] = _BRAKE_SMOOTHING
+        bounds = [(None, None)] * (nf + 1) + [(0.0, None)] * nd
+        res = linprog(cost, a_ub, b_ub, a_eq, [-speed], bounds=bounds, method="highs")
+        if res.status != 0:
+            return None
+        return cls(float(duration), v0, knots, free @ res.x[:nf], kappa)
+
+    def value(self, t: ArrayLike, order: int = 0) -> FloatArray:
+        """Derivative ``order`` (0-4) at times ``t`` (s), shape (N, 2) (m/s^order);
+        at rest after t_f."""
+        if not 0 <= order <= 4:
+            raise ConfigError(f"a brake reference has derivatives 0-4, got order {order!r}")
+        tt = np.atleast_1d(np.asarray(t, dtype=float))
+        s = np.clip(tt, 0.0, self.duration)
+        speed = float(np.hypot(*self.velocity))
+        along = self.gain * self._along[order](s)
+        if order == 0:
+            along = along + speed * s
+        elif order == 1:
+            along = np.where(tt > self.duration, 0.0, along + speed)
+        else:
+            along = np.where(tt > self.duration, 0.0, along)
+        unit = self.velocity / speed
+        return np.asarray(along[:, None] * unit[None, :], dtype=np.float64)
 
 
 # --------------------------------------------------------------------------------------
@@ -711,15 +892,8 @@ class _Basis:
 @functools.lru_cache(maxsize=4)  # a few MB each; the 0° and 90° plans share one
 def _basis(n_steps: int, step: float, knot_spacing: float) -> _Basis:
     duration = n_steps * step
-    n_int = max(1, round(duration / knot_spacing) - 1)
-    knots = np.concatenate(
-        [
-            np.zeros(_DEGREE + 1),
-            np.linspace(0.0, duration, n_int + 2)[1:-1],
-            np.full(_DEGREE + 1, duration),
-        ]
-    )
-    nb = n_int + _DEGREE + 1
+    knots = _lean_knots(duration, knot_spacing)
+    nb = knots.size - _DEGREE - 1
     free = np.eye(nb)[:, 3 : nb - 3]
     spl = BSpline(knots, free, _DEGREE)
     th = np.arange(2 * n_steps + 1) * (0.5 * step)
