@@ -667,7 +667,8 @@ class CatchOptions:
         S and G of a still catch, as a share of the palette's G (in (0, 1]).
     still_outer : tuple of float
         D' position (m) and velocity (m/s) extents of a still catch (round); also at
-        least 1.1 and 3 times S's.
+        least 1.1 and 3 times S's. From the tight band the tracking error never grows
+        beyond where it starts on S's boundary, so D' is S's floor (1.1 × 0.04 m).
     still_lean : tuple of float
         Largest lean (rad) and lean rate (rad/s) deviation from the plan's of a still
         catch or shift (verified at the corners of that band).
@@ -675,7 +676,8 @@ class CatchOptions:
         S/G of a still shift, at least ``still_scale`` (its S ⊇ a still catch's G); the
         same shifts, verified from that S and the still band, with D' ``still_shift_outer``.
     still_shift_outer : tuple of float
-        Least D' position (m) and velocity (m/s) extents of a still shift (round).
+        Least D' position (m) and velocity (m/s) extents of a still shift (round):
+        also just above S's floor (1.1 × 0.048 m), for the same reason.
     """
 
     speeds: tuple[float, ...] = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1, 1.2)
@@ -706,10 +708,10 @@ class CatchOptions:
     still_max_lean: float = math.radians(7.5)
     still_torque_shares: tuple[float, ...] = (0.9, 0.8)
     still_scale: float = 0.5
-    still_outer: tuple[float, float] = (0.05, 0.5)
+    still_outer: tuple[float, float] = (0.044, 0.5)
     still_lean: tuple[float, float] = (math.radians(0.1), math.radians(0.5))
     still_shift_scale: float = 0.6
-    still_shift_outer: tuple[float, float] = (0.055, 0.5)
+    still_shift_outer: tuple[float, float] = (0.053, 0.5)
 
     def __post_init__(self) -> None:
         for name in (
