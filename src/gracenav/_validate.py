@@ -269,7 +269,7 @@ class Fields:
         """Refuse keys not in ``allowed``."""
         unknown = sorted(_key_text(k) for k in self.data if k not in allowed)
         if unknown:
-            shown = ", ".join(repr(self.path(k)) for k in unknown[:5])
+            shown = ", ".join(f"'{self.path(k)}'" for k in unknown[:5])
             raise self.fail(
                 f"unknown key(s) {shown}{' ...' if len(unknown) > 5 else ''}; "
                 f"allowed: {', '.join(sorted(allowed))}"
