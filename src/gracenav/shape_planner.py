@@ -357,10 +357,8 @@ class ShortestBrakeReference:
         room = max_torque - params.coulomb_friction
         nf = free.shape[1]
         # Variables: lean coefficients c (nf), reach z, second-difference bounds s (nf − 2).
-        nd = max(nf - 2, 0)
-        diff = np.zeros((nd, nf))
-        for i in range(nd):
-            diff[i, i : i + 3] = (1.0, -2.0, 1.0)
+        diff = np.diff(np.eye(nf), n=2, axis=0)
+        nd = diff.shape[0]
 
         def rows(m: FloatArray, z: float = 0.0, s: FloatArray | None = None) -> FloatArray:
             out = np.zeros((m.shape[0], nf + 1 + nd))
