@@ -37,7 +37,7 @@ import numpy as np
 
 from gracenav.execution import EventReason, ExecutionOptions, HybridController
 from gracenav.graph import build_graph
-from gracenav.library import build_library
+from gracenav.library import DEFAULT_SPEED_CLEARANCE, build_library
 from gracenav.palette import load_palette
 from gracenav.simulate import Push, state_from_position
 from gracenav.world import load_map
@@ -67,10 +67,16 @@ class Outcome:
     min_clearance: float
 
 
-def _init(resume: bool) -> None:
+def _init(resume: bool, speed_clearance: float = DEFAULT_SPEED_CLEARANCE) -> None:
     global _robot, _resume
     pal = load_palette()
-    lib = build_library(pal, load_map(MAP), footprint_radius=FOOTPRINT, max_halvings=1)
+    lib = build_library(
+        pal,
+        load_map(MAP),
+        footprint_radius=FOOTPRINT,
+        max_halvings=1,
+        speed_clearance=speed_clearance,
+    )
     _robot = HybridController(lib, build_graph(lib))
     _resume = resume
 
@@ -116,8 +122,15 @@ def main() -> None:
     ap.add_argument("--mode", choices=("paper", "fallback"), default="paper")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--processes", type=int, default=2)
+    ap.add_argument(
+        "--speed-clearance",
+        type=float,
+        default=DEFAULT_SPEED_CLEARANCE,
+        help=f"library stopping allowance (s, default {DEFAULT_SPEED_CLEARANCE:g}; 0: the "
+        "paper's instantiation)",
+    )
     args = ap.parse_args()
-    _init(args.mode == "fallback")
+    _init(args.mode == "fallback", args.speed_clearance)
     assert _robot is not None
     r = _robot.palette.params.ball_radius
     unpushed = _robot.run(state_from_position(np.asarray(START), r), [GOAL])
@@ -126,14 +139,17 @@ def main() -> None:
     if args.processes > 1:
         ctx = mp.get_context("fork")
         with ctx.Pool(
-            args.processes, initializer=_init, initargs=(args.mode == "fallback",)
+            args.processes,
+            initializer=_init,
+            initargs=(args.mode == "fallback", args.speed_clearance),
         ) as pool:
             results = pool.map(_run, draws, chunksize=4)
     else:
         results = [_run(d) for d in draws]
     wall = time.perf_counter() - t0
     print(
-        f"{args.runs} pushed runs, mode {args.mode}, unpushed run {unpushed.time[-1]:.2f} s, "
+        f"{args.runs} pushed runs (seed {args.seed}), mode {args.mode}, speed clearance "
+        f"{args.speed_clearance:g} s, unpushed run {unpushed.time[-1]:.2f} s, "
         f"{len(_robot.library)} policies; {wall:.1f} s wall on {args.processes} processes"
     )
     header = (

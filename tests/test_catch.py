@@ -272,11 +272,14 @@ def test_two_shifts_lead_onto_the_lattice_where_one_cannot(palette) -> None:
     assert np.min(world.clearance(ep.position_state[:, :2])) >= 0.2
 
 
-def test_a_pushed_robot_is_caught_at_its_state_with_the_papers_controller(box_room) -> None:
-    """Cruising below the box at (2.5, 1.5), 0.5 m from it, pushed back and sideways:
-    no library policy contains the state, a catch does, and the task goes on without
-    balancing mode."""
-    lib, graph = box_room
+def test_a_pushed_robot_is_caught_at_its_state_with_the_papers_controller(palette) -> None:
+    """With the paper's instantiation (no stopping allowance), cruising below the box at
+    (2.5, 1.5), 0.5 m from it, pushed back and sideways: no library policy contains the
+    state, a catch does, and the task goes on without balancing mode."""
+    lib = build_library(
+        palette, load_map(BOX_ROOM), footprint_radius=0.2, max_halvings=1, speed_clearance=0.0
+    )
+    graph = build_graph(lib)
     robot = HybridController(lib, graph)
     r = robot.palette.params.ball_radius
     push = Push(time=4.29, impulse=(-8.5, 5.7))
@@ -306,9 +309,9 @@ def test_a_pushed_robot_is_caught_at_its_state_with_the_papers_controller(box_ro
 
 def test_pushes_with_the_papers_controller_recover_into_verified_domains(box_room) -> None:
     """A seeded Monte Carlo of 24 single pushes of 0-16 N s (the benchmark's model,
-    bench/bench_pushes.py, on the same room): with catches, the paper's controller
-    (no resumption from balancing mode) reaches the goal in nearly every run, and no
-    footprint touches an obstacle."""
+    bench/bench_pushes.py, on the same room, default stopping allowance): with catches,
+    the paper's controller (no resumption from balancing mode) reaches the goal in
+    nearly every run, and no footprint touches an obstacle."""
     lib, graph = box_room
     robot = HybridController(lib, graph)
     r = robot.palette.params.ball_radius
@@ -326,7 +329,7 @@ def test_pushes_with_the_papers_controller_recover_into_verified_domains(box_roo
         reached += ep.reached_goal
         xy = position_state(ep.states, r)[:, :2]
         assert np.min(lib.world_map.clearance(xy)) >= 0.2
-    assert reached >= runs - 2
+    assert reached >= runs - 1
 
 
 def test_catch_policies_keep_the_first_candidate_that_verifies(palette) -> None:

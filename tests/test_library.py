@@ -102,16 +102,31 @@ def test_obstacle_and_edge_rejection_hand_computed() -> None:
     np.testing.assert_allclose(lib.end_state[lib.orientation == 0, 0], [1.0, 1.5], atol=1e-12)
 
 
-def _exact_valid(lib_map: WorldMap, pol: MotionPolicy, q: np.ndarray, k: int, fp: float) -> float:
-    """Smallest clearance margin over every control tick of the swept D' (m)."""
+def _exact_valid(
+    lib_map: WorldMap,
+    pol: MotionPolicy,
+    q: np.ndarray,
+    k: int,
+    fp: float,
+    speed_clearance: float = 0.0,
+) -> float:
+    """Smallest clearance margin over every control tick of the swept D' with the
+    stopping allowance: the disc of radius ``fp`` + ρ'(t) + κ|v|/2 centred κ v/2 ahead
+    of the reference (κ = ``speed_clearance``) must be clear (m)."""
     prim = pol.primitive
     t = np.arange(prim.num_ticks + 1) * prim.dt
-    centres = q + prim.position[:, :2] @ quarter_turn(k).T
+    lead = prim.position[:, :2] + 0.5 * speed_clearance * prim.position[:, 2:4]
+    centres = q + lead @ quarter_turn(k).T
     radius = pol.radii(t)[0] * pol.outer_factors[0]
-    return float(np.min(lib_map.clearance(centres) - fp - radius))
+    speed = np.hypot(prim.position[:, 2], prim.position[:, 3])
+    return float(np.min(lib_map.clearance(centres) - fp - radius - 0.5 * speed_clearance * speed))
 
 
-def test_sweep_check_is_conservative_and_tight() -> None:
+@pytest.mark.parametrize("speed_clearance", [0.0, 0.3])
+def test_sweep_check_is_conservative_and_tight(speed_clearance: float) -> None:
+    """Every kept instantiation keeps the footprint plus D'(t) plus the stopping
+    allowance (``speed_clearance`` times the reference speed) clear at every control
+    tick, and every instantiation clear by more than the sampling allowance is kept."""
     rng = np.random.default_rng(3)
     obstacles = [
         {"circle": {"center": [float(x), float(y)], "radius": float(r)}}
@@ -127,27 +142,38 @@ def test_sweep_check_is_conservative_and_tight() -> None:
     pols = (policy(turn, (0.2, 0.2), (0.1, 0.1), (1.5, 2.0)), policy(rest(), (0.15, 0.2)))
     pal = palette(*pols)
     fp = 0.2
-    lib = build_library(pal, wmap, footprint_radius=fp, max_halvings=1, coverage_samples=200)
+    lib = build_library(
+        pal,
+        wmap,
+        footprint_radius=fp,
+        max_halvings=1,
+        coverage_samples=200,
+        speed_clearance=speed_clearance,
+    )
+    assert lib.speed_clearance == speed_clearance
     kept = rows(lib)
     # Allowance: half the sweep step (map resolution) plus one tick of motion at 0.6 m/s,
     # plus the shrink of D' between two checked samples (< 1 cm here).
     allowance = 0.5 * (wmap.resolution + 0.6 * DT) + 0.01
-    n_checked = 0
+    n_checked = n_refused_for_speed = 0
     for p, pol in enumerate(pols):
         for k in range(4):
             for ix in range(lib.lattice_shape[1]):
                 for iy in range(lib.lattice_shape[0]):
                     q = lib.origin + lib.spacing * np.array([ix, iy])
-                    margin = _exact_valid(wmap, pol, q, k, fp)
+                    margin = _exact_valid(wmap, pol, q, k, fp, speed_clearance)
                     key = (p, k, round(float(q[0]), 9), round(float(q[1]), 9))
                     if margin < 0.0:
                         assert key not in kept, f"kept an instantiation that collides: {key}"
+                        # Clear of the verified D' alone: refused for the allowance.
+                        n_refused_for_speed += _exact_valid(wmap, pol, q, k, fp) >= allowance
                     if margin >= allowance + 1e-9:
                         assert key in kept, f"rejected a clear instantiation: {key}"
                     n_checked += 1
     assert lib.spacing == pytest.approx(0.25, abs=1e-15)
     assert n_checked == 2 * 4 * 17 * 17
     assert 0 < len(lib) < n_checked
+    assert (n_refused_for_speed > 0) == (speed_clearance > 0)
 
 
 # -- orientations ------------------------------------------------------------------------
@@ -337,6 +363,9 @@ def test_halving_refines_until_the_target_or_the_limit() -> None:
         ({"max_halvings": 1.5}, "max_halvings"),
         ({"coverage_samples": 0}, "coverage_samples"),
         ({"sweep_step": 0.0}, "sweep_step"),
+        ({"speed_clearance": -0.1}, "speed_clearance"),
+        ({"speed_clearance": 5.0}, "speed_clearance"),
+        ({"speed_clearance": True}, "speed_clearance"),
     ],
 )
 def test_bad_arguments_name_the_argument(kwargs: dict, match: str) -> None:

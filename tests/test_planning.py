@@ -584,7 +584,7 @@ def test_lazy_tree_on_real_palette_libraries(where: str) -> None:
         for goal in rng.choice(trims, 3, replace=False):
             whole = plan_tree(graph.csc(cost), int(goal), criterion=cost)
             lazy = LazyPolicyTree(build_graph(lib), int(goal), criterion=cost)
-            for row in rng.choice(len(lib), 8, replace=False):
+            for row in rng.choice(len(lib), 16, replace=False):
                 state = lib.start_state[row].copy()
                 state[2:] += rng.normal(0.0, 0.05, 2)
                 hits = lib.start_domain_contains(state[None, :])

@@ -150,6 +150,7 @@ BAD = [
     ({"planner": {"kind": "rrt"}}, "'planner.kind' must be one of gracenav, decoupled"),
     ({"planner": {"resume_from_balancing": 0}}, "'planner.resume_from_balancing' must be true"),
     ({"planner": {"seed": -1}}, "planner.seed"),
+    ({"planner": {"speed_clearance": -0.2}}, "'planner.speed_clearance' must be a number in"),
     ({"simulation": {"plant": "gazebo"}}, "simulation.plant"),
     ({"simulation": {"seed": 1.5}}, "simulation.seed"),
     ({"disturbances": [{"kind": "push", "time": 1.0}]}, "disturbances[0].impulse"),
@@ -303,12 +304,19 @@ def test_planner_keys_and_a_shared_library() -> None:
     from gracenav.scenarios import prepare_library, run_scenario
 
     data = yaml.safe_load((SCENARIOS / "fig5_point_to_point.yaml").read_text())
-    data["planner"] = {**data.get("planner", {}), "resume_from_balancing": False, "seed": 7}
+    data["planner"] = {
+        **data.get("planner", {}),
+        "resume_from_balancing": False,
+        "seed": 7,
+        "speed_clearance": 0.1,
+    }
     data["task"]["starts"] = data["task"]["starts"][:1]
     sc = parse_scenario(data, source="s.yaml")
     assert sc.resume_from_balancing is False and sc.library_seed == 7
+    assert sc.speed_clearance == 0.1
     assert sc.planner == "gracenav"
     prepared = prepare_library(sc)
+    assert prepared.library.speed_clearance == 0.1
     first = run_scenario(sc, prepared=prepared)
     other = dataclasses.replace(sc, seed=123)
     again = run_scenario(other, prepared=prepared)
@@ -316,3 +324,5 @@ def test_planner_keys_and_a_shared_library() -> None:
     assert again.runs[0].reached_goal and first.runs[0].reached_goal
     with pytest.raises(ValueError, match="another map, footprint"):
         run_scenario(dataclasses.replace(sc, footprint_radius=0.25), prepared=prepared)
+    with pytest.raises(ValueError, match="another map, footprint"):
+        run_scenario(dataclasses.replace(sc, speed_clearance=0.2), prepared=prepared)

@@ -9,6 +9,8 @@ A scenario file (YAML) has these keys (SI units; positions in m, velocities in m
     # map: {ros_map: lab.yaml}              # ... or a ROS map_server file, relative to this file
     robot: {footprint_radius: 0.2, sensing_range: 3.0}  # optional (m)
     planner: {cost: time, max_halvings: 1}  # optional; cost: time | distance
+    # planner: {speed_clearance: 0.1}       # stopping allowance (s): moving policies keep
+    #   0.1 s x their speed more room from obstacles (0: the paper's instantiation)
     # planner: {kind: decoupled}            # the plan-then-track baseline (gracenav.baseline)
     # planner: {resume_from_balancing: false, capture: true, seed: 0}  # the paper's
     #   recovery; catches placed at the state (gracenav.capture); library seed
@@ -53,6 +55,7 @@ import numpy as np
 from gracenav._io import atomic_write_text, load_document
 from gracenav._validate import Fields, require_mapping
 from gracenav.errors import ConfigError
+from gracenav.library import DEFAULT_SPEED_CLEARANCE, MAX_SPEED_CLEARANCE
 from gracenav.params import BallbotParams
 from gracenav.replanning import ObstacleSensing
 from gracenav.simulate import Disturbance, Drag, Push, SimulationOptions
@@ -123,6 +126,9 @@ class Scenario:
     library_seed : int
         Seed of the library's coverage samples (``planner.seed``), apart from the
         simulation's seed, so that trials with different noise share one library.
+    speed_clearance : float
+        ``planner.speed_clearance``: the library's stopping allowance (s; see
+        :func:`gracenav.library.build_library`).
     moving_obstacles : tuple of MovingObstacle
         Obstacles not in the map, learned within ``sensing_range`` (m) of the robot.
     sensing_range : float
@@ -149,6 +155,7 @@ class Scenario:
     resume_from_balancing: bool = True
     capture: bool = True
     library_seed: int = 0
+    speed_clearance: float = DEFAULT_SPEED_CLEARANCE
     moving_obstacles: tuple[MovingObstacle, ...] = ()
     sensing_range: float = 3.0
 
@@ -250,13 +257,30 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         "sensing_range", ObstacleSensing().range, positive=True, maximum=100.0, unit="m"
     )
     planner = top.sub("planner", {})
-    planner.check_keys({"kind", "cost", "max_halvings", "resume_from_balancing", "capture", "seed"})
+    planner.check_keys(
+        {
+            "kind",
+            "cost",
+            "max_halvings",
+            "resume_from_balancing",
+            "capture",
+            "seed",
+            "speed_clearance",
+        }
+    )
     planner_kind = planner.choice("kind", PLANNERS, "gracenav")
     cost = planner.choice("cost", ("time", "distance"), "time")
     halvings = planner.integer("max_halvings", 1, maximum=20)
     resume = planner.boolean("resume_from_balancing", True)
     capture = planner.boolean("capture", True)
     library_seed = planner.integer("seed", 0, maximum=2**32 - 1)
+    speed_clearance = planner.number(
+        "speed_clearance",
+        DEFAULT_SPEED_CLEARANCE,
+        minimum=0.0,
+        maximum=MAX_SPEED_CLEARANCE,
+        unit="s",
+    )
     sim = top.sub("simulation", {})
     sim.check_keys({"plant", "seed", "position_noise_std", "max_time", "plant_params"})
     plant = sim.choice("plant", ("model3d", "mujoco"), "model3d")
@@ -347,6 +371,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         resume_from_balancing=resume,
         capture=capture,
         library_seed=library_seed,
+        speed_clearance=speed_clearance,
     )
 
 
@@ -624,7 +649,8 @@ class PreparedLibrary:
 
 def library_key(scenario: Scenario, palette: Any) -> str:
     """What a scenario's library depends on, as a string (inputs only, no computed
-    float): palette key, map source, footprint, halving limit and library seed."""
+    float): palette key, map source, footprint, halving limit, library seed and
+    stopping allowance."""
     src = scenario.map_source
     where = json.dumps(src, sort_keys=True) if isinstance(src, dict) else str(src)
     return json.dumps(
@@ -634,6 +660,7 @@ def library_key(scenario: Scenario, palette: Any) -> str:
             repr(scenario.footprint_radius),
             scenario.max_halvings,
             scenario.library_seed,
+            repr(scenario.speed_clearance),
         ]
     )
 
@@ -686,6 +713,7 @@ def prepare_library(scenario: Scenario, palette: Any | None = None) -> PreparedL
         footprint_radius=scenario.footprint_radius,
         max_halvings=scenario.max_halvings,
         seed=scenario.library_seed,
+        speed_clearance=scenario.speed_clearance,
     )
     graph = build_graph(library)
     return PreparedLibrary(
@@ -735,7 +763,8 @@ def run_scenario(
     ConfigError, PlanningError
         From :func:`check_scenario`, before the library is built.
     ValueError
-        ``prepared`` was built for another map, footprint, palette or library seed.
+        ``prepared`` was built for another map, footprint, palette, library seed or
+        stopping allowance.
     """
     from gracenav.execution import HybridController
     from gracenav.palette import load_palette
@@ -751,7 +780,7 @@ def run_scenario(
     elif prepared.key != library_key(scenario, palette):
         raise ValueError(
             "prepared library was built for another map, footprint, halving limit, library "
-            "seed or palette than this scenario's"
+            "seed, speed clearance or palette than this scenario's"
         )
     else:
         check_scenario(scenario, prepared.world_map, palette)

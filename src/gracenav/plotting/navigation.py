@@ -232,10 +232,10 @@ def animate_episode(result: Any, run: int, path: str | Path, *, fps: int = 10) -
         pid = int(ep.policy[i])
         if pid < 0:  # -1 balancing mode, -2 the terminal regulator at the goal
             dom.set_data([], [])
-            return f"t = {ep.time[i]:5.1f} s  {'balancing' if pid == -1 else 'terminal'}"
+            return f"t = {ep.time[i]:6.2f} s  {'balancing' if pid == -1 else 'terminal'}"
         name, xs, ys = outer_domain_outline(lib, ep, i, policies, ang)
         dom.set_data(xs, ys)
-        return f"t = {ep.time[i]:5.1f} s  {name}"
+        return f"t = {ep.time[i]:6.2f} s  {name}"
 
     canvas = fig.canvas
     canvas.draw()  # lays the figure out once and renders the static background
