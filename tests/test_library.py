@@ -102,6 +102,37 @@ def test_obstacle_and_edge_rejection_hand_computed() -> None:
     np.testing.assert_allclose(lib.end_state[lib.orientation == 0, 0], [1.0, 1.5], atol=1e-12)
 
 
+def test_stopping_allowance_is_room_ahead_not_beside_hand_computed() -> None:
+    # A 4 m x 1 m corridor; a straight cruise of 0.5 m at 0.5 m/s with D' radius 0.1 m,
+    # footprint 0.1 m, lattice points at y = 0.5 (0.5 m from both long walls). The
+    # paper's check needs 0.2 m around the path. An allowance of 0.8 s asks
+    # 0.8 s x 0.5 m/s = 0.4 m more straight ahead and nothing beside: the disc led by
+    # 0.2 m and grown by 0.2 m (radius 0.4 m) still fits beside (the cruise stays on
+    # y = 0.5), but the end walls now need 0.5 + 0.2 + 0.4 = 1.1 m ahead of the start
+    # instead of 0.7 m. An allowance in every direction (0.6 m beside) would keep none.
+    wmap = free_map(0.0, 0.0, 4.0, 1.0)
+    pal = palette(policy(cruise_x(0.5), (0.1, 0.1), (0.1, 0.1), (1.0, 1.0)))
+
+    def kept(allowance: float) -> set[tuple[int, int, float, float]]:
+        lib = build_library(
+            pal,
+            wmap,
+            footprint_radius=0.1,
+            max_halvings=0,
+            coverage_samples=200,
+            speed_clearance=allowance,
+        )
+        return rows(lib)
+
+    def line(k: int, xs: np.ndarray) -> set[tuple[int, int, float, float]]:
+        return {(0, k, round(float(x), 9), 0.5) for x in xs}
+
+    # Moving +x (k = 0) from x0: x0 >= 0.2 behind, x0 + 0.7 <= 4 (paper) or
+    # x0 + 1.1 <= 4 ahead; moving -x (k = 2) mirrored. Moves along y hit a wall.
+    assert kept(0.0) == line(0, np.arange(0.5, 3.01, 0.5)) | line(2, np.arange(1.0, 3.51, 0.5))
+    assert kept(0.8) == line(0, np.arange(0.5, 2.51, 0.5)) | line(2, np.arange(1.5, 3.51, 0.5))
+
+
 def _exact_valid(
     lib_map: WorldMap,
     pol: MotionPolicy,
