@@ -12,11 +12,15 @@ footprint touched an obstacle or a wall (true positions against the map's
 clearance).
 
 ``--mode paper`` is the paper's hybrid controller (no resumption from balancing
-mode: the task stops there); ``--mode fallback`` resumes from it.
+mode: the task stops there); ``--mode fallback`` resumes from it. The library keeps
+the default stopping allowance (``--speed-clearance``, gracenav.library.build_library;
+0 is the paper's instantiation). ``--plant mujoco`` runs the same robot in MuJoCo
+instead of the 3D model the policies were verified on.
 Target (paper mode): >= 99 % of >= 300 runs with pushes of 0-16 N s reach the
 goal, every recovery into a verified start domain, no contact.
 
     OPENBLAS_NUM_THREADS=1 python bench/bench_pushes.py [--runs 300] [--mode paper]
+        [--seed 0] [--speed-clearance 0.1] [--plant model3d]
 """
 
 from __future__ import annotations
@@ -51,6 +55,7 @@ BINS = (0.0, 4.0, 8.0, 12.0, 16.0)
 
 _robot: HybridController | None = None
 _resume = False
+_plant = "model3d"
 
 
 @dataclass(frozen=True)
@@ -67,8 +72,10 @@ class Outcome:
     min_clearance: float
 
 
-def _init(resume: bool, speed_clearance: float = DEFAULT_SPEED_CLEARANCE) -> None:
-    global _robot, _resume
+def _init(
+    resume: bool, speed_clearance: float = DEFAULT_SPEED_CLEARANCE, plant: str = "model3d"
+) -> None:
+    global _robot, _resume, _plant
     pal = load_palette()
     lib = build_library(
         pal,
@@ -79,6 +86,7 @@ def _init(resume: bool, speed_clearance: float = DEFAULT_SPEED_CLEARANCE) -> Non
     )
     _robot = HybridController(lib, build_graph(lib))
     _resume = resume
+    _plant = plant
 
 
 def _run(args: tuple[float, float, float]) -> Outcome:
@@ -87,7 +95,11 @@ def _run(args: tuple[float, float, float]) -> Outcome:
     robot = _robot
     r = robot.palette.params.ball_radius
     push = Push(time=push_time, impulse=(magnitude * np.cos(angle), magnitude * np.sin(angle)))
-    options = ExecutionOptions(max_time=60.0, resume_from_balancing=_resume)
+    options = ExecutionOptions(
+        max_time=60.0,
+        resume_from_balancing=_resume,
+        plant=_plant,
+    )
     ep = robot.run(
         state_from_position(np.asarray(START), r), [GOAL], disturbances=[push], options=options
     )
@@ -129,11 +141,22 @@ def main() -> None:
         help=f"library stopping allowance (s, default {DEFAULT_SPEED_CLEARANCE:g}; 0: the "
         "paper's instantiation)",
     )
+    ap.add_argument(
+        "--plant",
+        choices=("model3d", "mujoco"),
+        default="model3d",
+        help="simulated robot (default model3d; mujoco: the same robot in MuJoCo, about "
+        "10 s per run)",
+    )
     args = ap.parse_args()
-    _init(args.mode == "fallback", args.speed_clearance)
+    _init(args.mode == "fallback", args.speed_clearance, args.plant)
     assert _robot is not None
     r = _robot.palette.params.ball_radius
-    unpushed = _robot.run(state_from_position(np.asarray(START), r), [GOAL])
+    unpushed = _robot.run(
+        state_from_position(np.asarray(START), r),
+        [GOAL],
+        options=ExecutionOptions(plant=args.plant),
+    )
     draws = _draws(args.runs, args.max_impulse, args.seed, float(unpushed.time[-1]))
     t0 = time.perf_counter()
     if args.processes > 1:
@@ -141,14 +164,15 @@ def main() -> None:
         with ctx.Pool(
             args.processes,
             initializer=_init,
-            initargs=(args.mode == "fallback", args.speed_clearance),
+            initargs=(args.mode == "fallback", args.speed_clearance, args.plant),
         ) as pool:
             results = pool.map(_run, draws, chunksize=4)
     else:
         results = [_run(d) for d in draws]
     wall = time.perf_counter() - t0
     print(
-        f"{args.runs} pushed runs (seed {args.seed}), mode {args.mode}, speed clearance "
+        f"{args.runs} pushed runs (seed {args.seed}), plant {args.plant}, mode {args.mode}, "
+        "speed clearance "
         f"{args.speed_clearance:g} s, unpushed run {unpushed.time[-1]:.2f} s, "
         f"{len(_robot.library)} policies; {wall:.1f} s wall on {args.processes} processes"
     )
