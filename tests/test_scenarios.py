@@ -52,6 +52,7 @@ def test_fig5_every_start_reaches_the_goal_gracefully(fig5, tmp_path) -> None:
     write_outputs(fig5, tmp_path, animation=False)
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert [r["reached_goal"] for r in summary["runs"]] == [True] * 4
+    assert summary["speed_clearance_s"] == fig5.scenario.speed_clearance
     header = (tmp_path / "trajectory.csv").read_text().splitlines()[0].split(",")
     for col in ("run", "t", "x", "y", "xdot", "ydot", "lean_x", "lean_y", "tau_x", "tau_y"):
         assert col in header
