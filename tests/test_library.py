@@ -155,9 +155,10 @@ def _exact_valid(
 
 @pytest.mark.parametrize("speed_clearance", [0.0, 0.3])
 def test_sweep_check_is_conservative_and_tight(speed_clearance: float) -> None:
-    """Every kept instantiation keeps the footprint plus D'(t) plus the stopping
-    allowance (``speed_clearance`` times the reference speed) clear at every control
-    tick, and every instantiation clear by more than the sampling allowance is kept."""
+    """Every kept instantiation keeps clear, at every control tick, the footprint plus
+    D'(t) grown by the stopping allowance (the disc led by half of ``speed_clearance``
+    times the velocity and grown by half of it times the speed), and every
+    instantiation clear by more than the sampling allowance is kept."""
     rng = np.random.default_rng(3)
     obstacles = [
         {"circle": {"center": [float(x), float(y)], "radius": float(r)}}

@@ -309,15 +309,15 @@ def test_planner_keys_and_a_shared_library() -> None:
         **data.get("planner", {}),
         "resume_from_balancing": False,
         "seed": 7,
-        "speed_clearance": 0.1,
+        "speed_clearance": 0.05,
     }
     data["task"]["starts"] = data["task"]["starts"][:1]
     sc = parse_scenario(data, source="s.yaml")
     assert sc.resume_from_balancing is False and sc.library_seed == 7
-    assert sc.speed_clearance == 0.1
+    assert sc.speed_clearance == 0.05  # not the default, so the key is read
     assert sc.planner == "gracenav"
     prepared = prepare_library(sc)
-    assert prepared.library.speed_clearance == 0.1
+    assert prepared.library.speed_clearance == 0.05
     first = run_scenario(sc, prepared=prepared)
     other = dataclasses.replace(sc, seed=123)
     again = run_scenario(other, prepared=prepared)

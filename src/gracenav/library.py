@@ -1477,9 +1477,9 @@ def build_library(
         :data:`POLICY_BYTES` is compared with it and an over-budget pass is refused;
         None turns the check off.
     speed_clearance : float
-        Stopping allowance (s): a sample of the swept D' where the reference moves at
-        speed v needs this times v more clearance (0 is the paper's instantiation; see
-        the notes).
+        Stopping allowance (s): where the reference moves at velocity v, an obstacle
+        straight ahead must be this times |v| farther than the swept D' needs, one
+        beside or behind no farther (0 is the paper's instantiation; see the notes).
 
     Returns
     -------

@@ -10,7 +10,7 @@ A scenario file (YAML) has these keys (SI units; positions in m, velocities in m
     robot: {footprint_radius: 0.2, sensing_range: 3.0}  # optional (m)
     planner: {cost: time, max_halvings: 1}  # optional; cost: time | distance
     # planner: {speed_clearance: 0.1}       # stopping allowance (s): moving policies keep
-    #   0.1 s x their speed more room from obstacles (0: the paper's instantiation)
+    #   0.1 s x their speed more room toward obstacles ahead (0: the paper's instantiation)
     # planner: {kind: decoupled}            # the plan-then-track baseline (gracenav.baseline)
     # planner: {resume_from_balancing: false, capture: true, seed: 0}  # the paper's
     #   recovery; catches placed at the state (gracenav.capture); library seed
