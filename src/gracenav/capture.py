@@ -5,8 +5,9 @@ Sequential composition promises a verified policy for every state a push can lea
 few speeds, leave most moving states outside every start domain S. A *catch* is
 placed where the robot is instead: a braking maneuver from a speed of
 :attr:`~gracenav.policies.CatchOptions.speeds` (0 is a rest hold) along +x to rest,
-then a rest tail, rotated to the robot's heading and moved so that it ends on a fine
-grid (spacing d / ``grid_divisions``, anchored where the library's lattice is). Its
+then a rest tail, turned near the robot's heading and moved so that it ends on a fine
+grid (spacing d / ``grid_divisions``, anchored where the library's lattice is); of
+the headings that end it there, the one whose S best holds the state is used. Its
 start domain S is small (the palette's shape at 1–1.5 G) and only has to hold the
 speed difference to the nearest catch and a grid cell of placement; its outer
 domain D' is a tube of fixed extents around the braking path, much narrower than a
@@ -122,6 +123,12 @@ _BRAKE_DERATE = 0.97
 _BRAKE_SETTLE = 1.0
 #: A catch is tried for states whose speed is within this of its own (m/s).
 _SPEED_WINDOW = 0.16
+#: A catch is placed to end on one of the 3 x 3 grid points nearest its natural stop,
+#: at the best of this many headings within this many radians of the direction from
+#: the state to that point (see Capture._candidates).
+_NEIGHBOURS = np.array([(i, j) for i in (-1, 0, 1) for j in (-1, 0, 1)], dtype=np.int64)
+_HEADINGS = 61
+_HEADING_SPAN = 0.3
 #: Largest arc (m) between the samples of a catch's or shift's swept D' checked for
 #: clearance. Catches act near walls, where the library's coarser step (the map's
 #: resolution, half of it added to every disc) would cost the clearance they need.
@@ -883,7 +890,16 @@ class Capture:
         """(class rank, S value, member, heading, start, end cell) of every placement of
         a catch whose S contains ``state`` (``flat``, the flat output's position state,
         for a catch of :attr:`~gracenav.policies.MotionPolicy.flat_start`; default
-        ``state``), the catch ending on a grid point near its natural stop."""
+        ``state``), the catch ending on a grid point near its natural stop.
+
+        A catch ending at grid point q may start anywhere on the circle of radius its
+        stop around q, at the heading that points it at q. Of the headings within
+        ``_HEADING_SPAN`` of the direction from the state to q (``_HEADINGS`` of them,
+        that direction among them) the one with the least S value is kept: S couples
+        position and velocity errors (its thinnest axis mixes them), so a lateral offset
+        of the start can cancel the state's lateral velocity, which pointing the catch
+        straight at q cannot.
+        """
 
         def motion(st: FloatArray) -> tuple[FloatArray, FloatArray, float, FloatArray]:
             v = st[2:4]
@@ -892,34 +908,50 @@ class Capture:
 
         of_state = motion(state)
         of_flat = of_state if flat is None else motion(flat)
+        offsets = np.linspace(-_HEADING_SPAN, _HEADING_SPAN, _HEADINGS)
         out = []
         for m in self._members:
             p, v, speed, u = of_flat if m.policy.flat_start else of_state
             if m.lean_class not in classes or abs(m.speed - speed) > _SPEED_WINDOW:
                 continue
             base = np.round((p + m.stop * u - self.origin) / self.grid).astype(np.int64)
-            for di in (-1, 0, 1):
-                for dj in (-1, 0, 1):
-                    cell = (int(base[0] + di), int(base[1] + dj))
-                    q = self.origin + np.asarray(cell, dtype=float) * self.grid
-                    if m.stop > 1e-9:
-                        w = q - p
-                        dist = float(np.hypot(*w))
-                        if dist < 1e-9:
-                            continue
-                        heading = math.atan2(w[1], w[0])
-                        start = q - m.stop * w / dist
-                    else:
-                        heading = math.atan2(u[1], u[0])
-                        start = q
-                    c, s = math.cos(heading), math.sin(heading)
-                    rot_t = np.array([[c, s], [-s, c]])
-                    local = np.concatenate([rot_t @ (p - start), rot_t @ v])
-                    local[2] -= m.speed
-                    value = float(local @ m.shape @ local)
-                    if value <= 1.0:
-                        rank = classes.index(m.lean_class)
-                        out.append((rank, value, m, heading, start, cell))
+            cells = base + _NEIGHBOURS  # (9, 2)
+            q = self.origin + cells * self.grid
+            if m.stop > 1e-9:
+                w = q - p
+                keep = np.hypot(w[:, 0], w[:, 1]) >= 1e-9
+                cells, q, w = cells[keep], q[keep], w[keep]
+                towards = np.arctan2(w[:, 1], w[:, 0])
+            else:  # a rest hold: it starts where it ends
+                towards = np.full(q.shape[0], math.atan2(u[1], u[0]))
+            heading = towards[:, None] + offsets[None, :]  # (cells, headings)
+            c, s = np.cos(heading), np.sin(heading)
+            start = q[:, None, :] - m.stop * np.stack([c, s], axis=-1)
+            dp = p - start
+            local = np.stack(
+                [
+                    c * dp[..., 0] + s * dp[..., 1],
+                    c * dp[..., 1] - s * dp[..., 0],
+                    c * v[0] + s * v[1] - m.speed,
+                    c * v[1] - s * v[0],
+                ],
+                axis=-1,
+            )
+            value = np.einsum("...i,ij,...j->...", local, m.shape, local)
+            k = np.argmin(value, axis=1)
+            rows = np.arange(value.shape[0])
+            rank = classes.index(m.lean_class)
+            for i in np.flatnonzero(value[rows, k] <= 1.0):
+                out.append(
+                    (
+                        rank,
+                        float(value[i, k[i]]),
+                        m,
+                        float(heading[i, k[i]]),
+                        start[i, k[i]],
+                        (int(cells[i, 0]), int(cells[i, 1])),
+                    )
+                )
         out.sort(key=lambda c: (c[0], c[1]))
         return out
 
