@@ -448,6 +448,43 @@ def test_plot_library(tmp_path) -> None:
     assert out2.stat().st_size > 10_000
 
 
+def test_plot_library_coverage_with_captures(tmp_path, monkeypatch) -> None:
+    """With a palette that has catches, --coverage adds a fourth panel: the states
+    covered by a start domain or a capture (here on a 12 x 12 grid instead of 30 x 30).
+    On a 4 m room with a central box it covers far more than the start domains alone
+    (measured 0.863 against 0.354 of the same states) and less in the cells along the
+    walls than in those 0.67-1.33 m from the south wall (measured 0.43 and 1.0),
+    where a push leaves room to stop."""
+    from PIL import Image
+
+    from gracenav.capture import Capture
+    from gracenav.palette import load_palette
+    from gracenav.plotting import library as plotting
+
+    monkeypatch.setattr(plotting, "_CAPTURE_CELLS", 12)
+    wmap = free_map(0.0, 0.0, 4.0, 4.0, [{"rectangle": {"min": [1.7, 1.7], "max": [2.3, 2.3]}}])
+    lib = build_library(load_palette(), wmap, footprint_radius=0.2, max_halvings=1)
+    frac, extent, share = plotting._capture_grid(lib, np.random.default_rng(0), progress=False)
+    assert frac.shape == (12, 12) and extent == pytest.approx((0.0, 4.0, 0.0, 4.0))
+    ok = np.isfinite(frac)
+    assert np.all((frac[ok] >= 0.0) & (frac[ok] <= 1.0))
+    assert not ok[6, 6]  # the box's cell: no free sample
+    ring = np.zeros_like(ok)
+    ring[[0, -1], :] = True
+    ring[:, [0, -1]] = True
+    middle = np.zeros_like(ok)
+    middle[2:4, 2:10] = True
+    assert np.nanmean(frac[ring & ok]) < 0.6 < 0.95 < np.nanmean(frac[middle & ok])
+    with monkeypatch.context() as mp:  # the same states, no capture
+        mp.setattr(Capture, "covers", lambda self, states: np.zeros(len(states), dtype=bool))
+        _, _, alone = plotting._capture_grid(lib, np.random.default_rng(0), progress=False)
+    assert share > 0.8 and alone < 0.4, (share, alone)
+    one = plotting.plot_library(lib, tmp_path / "one.png")
+    four = plotting.plot_library(lib, tmp_path / "four.png", coverage=True)
+    with Image.open(one) as a, Image.open(four) as b:
+        assert b.size[0] == pytest.approx(4 * a.size[0], rel=0.02)
+
+
 def test_the_largest_start_domain_that_fits_is_placed() -> None:
     """Scaled domains: per primitive, orientation and point only the largest verified
     start domain whose swept D' fits is instantiated (checked against libraries built

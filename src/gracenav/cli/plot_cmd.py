@@ -59,11 +59,18 @@ def register(sub: Any) -> None:
         help="the policy library on a map: start domains (paper Fig. 4 style)",
         description="Instantiate the palette on MAP (inline-geometry YAML/JSON or a ROS "
         "map_server YAML) and draw the map, obstacles and the library's start domains; "
-        "--coverage shows where sampled position states are not covered.",
+        "--coverage adds where sampled position states lie in no start domain, the "
+        "largest domain scale placed at each point, and where they are covered once "
+        "captures (catches placed at the state, then shifts onto a rest trim) count.",
     )
     lb.add_argument("map", type=Path, help="map file")
     lb.add_argument("--out", type=Path, required=True, help="output PNG file")
-    lb.add_argument("--coverage", action="store_true", help="draw the coverage view")
+    lb.add_argument(
+        "--coverage",
+        action="store_true",
+        help="add the coverage panels (start domains alone, domain scale, with captures; "
+        "the last plans a capture for every sampled state no start domain holds)",
+    )
     lb.add_argument(
         "--footprint",
         type=number(minimum=0.0, maximum=5.0, unit="m"),
@@ -151,7 +158,7 @@ def run_library(args: argparse.Namespace) -> int:
         footprint_radius=args.footprint,
         max_halvings=args.max_halvings,
     )
-    save_figure(out, lambda tmp: plot_library(lib, tmp, coverage=args.coverage))
+    save_figure(out, lambda tmp: plot_library(lib, tmp, coverage=args.coverage, progress=True))
     print(f"{len(lib)} library policies, coverage {100 * lib.coverage:.1f} %; wrote {out}")
     return 0
 

@@ -19,6 +19,11 @@ __all__ = ["plot_library"]
 MAX_CIRCLES = 20_000
 _HEAT_CELLS = 100  # heat-map cells along the longer side of the map, at most
 _HEAT_VELOCITIES = 48  # sampled position states per heat-map cell
+#: The same for the capture panel (a capture is planned for each state no library S holds).
+_CAPTURE_CELLS = 30
+_CAPTURE_VELOCITIES = 8
+#: Largest speed (m/s) of the capture panel's states, as in bench/bench_coverage.py.
+_CAPTURE_SPEED = 0.5
 
 
 def _draw_map(ax: Axes, library: PolicyLibrary) -> None:
@@ -124,33 +129,93 @@ def _draw_scales(ax: Axes, library: PolicyLibrary) -> None:
     )
 
 
+def _cell_samples(
+    library: PolicyLibrary, cells: int, per_cell: int, rng: np.random.Generator
+) -> tuple[np.ndarray, tuple[int, int], tuple[float, float, float, float]]:
+    """``per_cell`` positions drawn in each cell of a grid of at most ``cells`` cells
+    along the map's longer side (cell by cell), the grid's shape (ny, nx) and extent."""
+    wmap = library.world_map
+    (x0, y0), (x1, y1) = wmap.bounds
+    h = max(wmap.resolution, max(x1 - x0, y1 - y0) / cells)
+    nx = max(1, int(np.ceil((x1 - x0) / h)))
+    ny = max(1, int(np.ceil((y1 - y0) / h)))
+    cx = x0 + (np.arange(nx) + 0.5) * h
+    cy = y0 + (np.arange(ny) + 0.5) * h
+    gx, gy = np.meshgrid(cx, cy)
+    xy = np.repeat(np.column_stack([gx.ravel(), gy.ravel()]), per_cell, axis=0)
+    xy += rng.uniform(-0.5 * h, 0.5 * h, size=xy.shape)
+    xy = np.clip(xy, (x0, y0), (np.nextafter(x1, x0), np.nextafter(y1, y0)))
+    return xy, (ny, nx), (x0, x0 + nx * h, y0, y0 + ny * h)
+
+
+def _cell_fractions(inside: np.ndarray, covered: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """Share of each cell's samples inside the state space that are covered (NaN
+    where none is inside), shape ``shape``."""
+    n_in = inside.reshape(shape[0] * shape[1], -1).sum(axis=1)
+    n_cov = covered.reshape(shape[0] * shape[1], -1).sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        frac = np.where(n_in > 0, n_cov / np.maximum(n_in, 1), np.nan)
+    return frac.reshape(shape)
+
+
 def _coverage_grid(
     library: PolicyLibrary, rng: np.random.Generator
 ) -> tuple[np.ndarray, tuple[float, float, float, float]]:
     """Fraction of sampled position states covered in each cell (NaN outside the
     state space), shape (ny, nx), and the image extent."""
     wmap = library.world_map
-    (x0, y0), (x1, y1) = wmap.bounds
-    h = max(wmap.resolution, max(x1 - x0, y1 - y0) / _HEAT_CELLS)
-    nx = max(1, int(np.ceil((x1 - x0) / h)))
-    ny = max(1, int(np.ceil((y1 - y0) / h)))
-    k = _HEAT_VELOCITIES
-    cx = x0 + (np.arange(nx) + 0.5) * h
-    cy = y0 + (np.arange(ny) + 0.5) * h
-    gx, gy = np.meshgrid(cx, cy)
-    xy = np.repeat(np.column_stack([gx.ravel(), gy.ravel()]), k, axis=0)
-    xy += rng.uniform(-0.5 * h, 0.5 * h, size=xy.shape)
-    xy = np.clip(xy, (x0, y0), (np.nextafter(x1, x0), np.nextafter(y1, y0)))
+    xy, shape, extent = _cell_samples(library, _HEAT_CELLS, _HEAT_VELOCITIES, rng)
     v_max = max_trim_speed(library.palette)
     v = rng.uniform(-v_max, v_max, size=xy.shape)
     inside = wmap.is_free(xy) & (wmap.clearance(xy) >= library.footprint_radius)
     covered = np.zeros(xy.shape[0], dtype=bool)
     covered[inside] = library.start_domain_covers(np.column_stack([xy, v])[inside])
-    n_in = inside.reshape(-1, k).sum(axis=1)
-    n_cov = covered.reshape(-1, k).sum(axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        frac = np.where(n_in > 0, n_cov / np.maximum(n_in, 1), np.nan)
-    return frac.reshape(ny, nx), (x0, x0 + nx * h, y0, y0 + ny * h)
+    return _cell_fractions(inside, covered, shape), extent
+
+
+def _capture_grid(
+    library: PolicyLibrary, rng: np.random.Generator, *, progress: bool
+) -> tuple[np.ndarray, tuple[float, float, float, float], float]:
+    """As :func:`_coverage_grid`, on a coarser grid, for states at |v| <= 0.5 m/s
+    (uniform on the disc) covered by a library S or a capture planned with the plan
+    lean (:meth:`gracenav.capture.Capture.covers`); also the share of all of them."""
+    from gracenav._progress import Progress
+    from gracenav.capture import capture_for
+
+    wmap = library.world_map
+    xy, shape, extent = _cell_samples(library, _CAPTURE_CELLS, _CAPTURE_VELOCITIES, rng)
+    speed = _CAPTURE_SPEED * np.sqrt(rng.uniform(size=xy.shape[0]))
+    angle = rng.uniform(0.0, 2.0 * np.pi, size=xy.shape[0])
+    states = np.column_stack([xy, speed * np.cos(angle), speed * np.sin(angle)])
+    inside = wmap.is_free(xy) & (wmap.clearance(xy) >= library.footprint_radius)
+    covered = np.zeros(xy.shape[0], dtype=bool)
+    covered[inside] = library.start_domain_covers(states[inside])
+    todo = np.flatnonzero(inside & ~covered)
+    capture = capture_for(library)
+    chunk = 64
+    with Progress(todo.size, "captures", enabled=progress) as bar:
+        for k in range(0, todo.size, chunk):
+            rows = todo[k : k + chunk]
+            covered[rows] = capture.covers(states[rows])
+            bar.update(rows.size)
+    share = float(np.mean(covered[inside])) if np.any(inside) else float("nan")
+    return _cell_fractions(inside, covered, shape), extent, share
+
+
+def _draw_heat(ax: Axes, library: PolicyLibrary, frac: np.ndarray, extent: Any) -> Any:
+    im = ax.imshow(
+        frac,
+        origin="lower",
+        extent=extent,
+        cmap="viridis",
+        vmin=0.0,
+        vmax=1.0,
+        interpolation="nearest",
+        zorder=1,
+    )
+    _draw_map(ax, library)
+    ax.figure.colorbar(im, ax=ax, shrink=0.8, label="fraction of sampled states covered")
+    return im
 
 
 def plot_library(
@@ -159,6 +224,7 @@ def plot_library(
     *,
     coverage: bool = False,
     seed: int = 0,
+    progress: bool = False,
 ) -> Path:
     """Save a PNG of a motion policy library on its map.
 
@@ -168,9 +234,13 @@ def plot_library(
     second panel shows, for each cell of a grid over the map, the fraction of sampled
     position states (positions in the cell with clearance >= the footprint radius,
     velocities uniform in [−v_max, v_max]²) that lie in at least one start domain; cells
-    outside the sampled state space are blank, uncovered regions are dark; and a third
+    outside the sampled state space are blank, uncovered regions are dark; a third
     panel the domain scale: at each instantiation point, the largest start domain size
-    S/G placed there (scaled domains: large in open space, small near obstacles).
+    S/G placed there (scaled domains: large in open space, small near obstacles); and,
+    if the palette has catches, a fourth panel the coverage with captures: on a
+    coarser grid, states at up to 0.5 m/s (uniform on the disc, as the coverage
+    bench draws them) in a library S or with a capture planned at the plan lean
+    (:mod:`gracenav.capture`), what a push leaves a verified policy for.
 
     Parameters
     ----------
@@ -181,6 +251,8 @@ def plot_library(
         Add the coverage heat map.
     seed : int
         Seed of the coverage samples and of the subset drawn for very large libraries.
+    progress : bool
+        Show a progress bar (on a terminal) while captures are planned.
 
     Returns
     -------
@@ -192,8 +264,11 @@ def plot_library(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from gracenav.capture import capture_for
+
     rng = np.random.default_rng(seed)
-    ncols = 3 if coverage else 1
+    captures = coverage and capture_for(library).available
+    ncols = (4 if captures else 3) if coverage else 1
     fig, axes_any = plt.subplots(
         1, ncols, figsize=(6.5 * ncols, 6.0), constrained_layout=True, squeeze=False
     )
@@ -208,24 +283,20 @@ def plot_library(
     if coverage:
         cax = axes[1]
         frac, extent = _coverage_grid(library, rng)
-        im = cax.imshow(
-            frac,
-            origin="lower",
-            extent=extent,
-            cmap="viridis",
-            vmin=0.0,
-            vmax=1.0,
-            interpolation="nearest",
-            zorder=1,
-        )
-        _draw_map(cax, library)
-        fig.colorbar(im, ax=cax, shrink=0.8, label="fraction of sampled states covered")
+        _draw_heat(cax, library, frac, extent)
         cax.set_title(
             f"start-domain coverage {library.coverage:.1%} "
             f"(|ẋ|, |ẏ| <= {max_trim_speed(library.palette):.2g} m/s)",
             fontsize=9,
         )
         _draw_scales(axes[2], library)
+        if captures:
+            frac, extent, share = _capture_grid(library, rng, progress=progress)
+            _draw_heat(axes[3], library, frac, extent)
+            axes[3].set_title(
+                f"with captures: {share:.1%} of sampled states (|v| <= {_CAPTURE_SPEED:g} m/s)",
+                fontsize=9,
+            )
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=130)
