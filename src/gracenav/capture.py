@@ -948,7 +948,7 @@ class Capture:
                         float(value[i, k[i]]),
                         m,
                         float(heading[i, k[i]]),
-                        start[i, k[i]],
+                        start[i, k[i]].copy(),
                         (int(cells[i, 0]), int(cells[i, 1])),
                     )
                 )
