@@ -326,6 +326,21 @@ def test_coverage_targets_by_the_estimate_and_by_brute_force(palette, name) -> N
         np.testing.assert_array_equal(brute, estimate[:n_brute])
 
 
+def test_rest_trims_by_grid_point_equal_a_scan(box_room) -> None:
+    """The capture planner's rest rows at each grid point (grouped by one sort) are
+    the rows a scan over every rest trim finds there, in ascending order."""
+    from gracenav.policies import PrimitiveKind
+
+    lib, _ = box_room
+    capture = capture_for(lib)
+    rest = lib.trim_indices(PrimitiveKind.REST)
+    cells = np.round((lib.start_xy[rest] - capture.origin) / capture.grid).astype(np.int64)
+    scan = {(int(i), int(j)) for i, j in cells}
+    assert set(capture._rest) == scan and len(scan) > 50
+    for key, rows in capture._rest.items():
+        np.testing.assert_array_equal(rows, rest[np.all(cells == key, axis=1)])
+
+
 def test_two_shifts_lead_onto_the_lattice_where_one_cannot(palette) -> None:
     """States 0.3-0.5 m from the cluttered room's obstacles, moving at up to 0.5 m/s:
     some catches end where no single shift with a clear swept D' reaches a rest trim

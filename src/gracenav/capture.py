@@ -798,10 +798,15 @@ class Capture:
         self._shift_time = np.array([p.duration for p, _ in shifts], dtype=float)
         rest = library.trim_indices(PrimitiveKind.REST)
         keys = np.round((library.start_xy[rest] - self.origin) / self.grid).astype(np.int64)
-        self._rest: dict[tuple[int, int], NDArray[np.int64]] = {}
-        for key in np.unique(keys, axis=0):
-            rows = rest[np.all(keys == key, axis=1)]
-            self._rest[(int(key[0]), int(key[1]))] = rows
+        # The rest rows at each grid point, ascending (one sort, not a scan per point).
+        points, which = np.unique(keys.reshape(-1, 2), axis=0, return_inverse=True)
+        which = which.reshape(-1)
+        order = np.argsort(which, kind="stable")
+        bounds = np.searchsorted(which[order], np.arange(points.shape[0] + 1))
+        self._rest: dict[tuple[int, int], NDArray[np.int64]] = {
+            (int(key[0]), int(key[1])): rest[order[a:b]]
+            for key, a, b in zip(points, bounds[:-1], bounds[1:], strict=True)
+        }
         self._direct_ways: dict[tuple[int, int, bool], list[_Way]] = {}
         self._chained: dict[tuple[int, int, bool], list[_Way]] = {}
 
