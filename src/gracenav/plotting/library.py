@@ -202,7 +202,8 @@ def _capture_grid(
     return _cell_fractions(inside, covered, shape), extent, share
 
 
-def _draw_heat(ax: Axes, library: PolicyLibrary, frac: np.ndarray, extent: Any) -> Any:
+def _draw_heat(ax: Axes, library: PolicyLibrary, frac: np.ndarray, extent: Any) -> None:
+    """Draw a coverage heat map (``frac`` from 0 to 1, NaN blank) under the map."""
     im = ax.imshow(
         frac,
         origin="lower",
@@ -215,7 +216,6 @@ def _draw_heat(ax: Axes, library: PolicyLibrary, frac: np.ndarray, extent: Any) 
     )
     _draw_map(ax, library)
     ax.figure.colorbar(im, ax=ax, shrink=0.8, label="fraction of sampled states covered")
-    return im
 
 
 def plot_library(
