@@ -102,14 +102,15 @@ def test_obstacle_and_edge_rejection_hand_computed() -> None:
     np.testing.assert_allclose(lib.end_state[lib.orientation == 0, 0], [1.0, 1.5], atol=1e-12)
 
 
-def test_stopping_allowance_is_room_ahead_not_beside_hand_computed() -> None:
+def test_stopping_allowance_is_all_ahead_and_half_beside_hand_computed() -> None:
     # A 4 m x 1 m corridor; a straight cruise of 0.5 m at 0.5 m/s with D' radius 0.1 m,
     # footprint 0.1 m, lattice points at y = 0.5 (0.5 m from both long walls). The
     # paper's check needs 0.2 m around the path. An allowance of 0.8 s asks
-    # 0.8 s x 0.5 m/s = 0.4 m more straight ahead and nothing beside: the disc led by
-    # 0.2 m and grown by 0.2 m (radius 0.4 m) still fits beside (the cruise stays on
-    # y = 0.5), but the end walls now need 0.5 + 0.2 + 0.4 = 1.1 m ahead of the start
-    # instead of 0.7 m. An allowance in every direction (0.6 m beside) would keep none.
+    # 0.8 s x 0.5 m/s = 0.4 m more straight ahead; the disc checked for it (led by
+    # 0.2 m and grown by 0.2 m, radius 0.4 m) asks half of that beside, which still
+    # fits (the cruise stays on y = 0.5, 0.5 m from the walls), but the end walls now
+    # need 0.5 + 0.2 + 0.4 = 1.1 m ahead of the start instead of 0.7 m. The full
+    # allowance in every direction (0.6 m beside) would keep none.
     wmap = free_map(0.0, 0.0, 4.0, 1.0)
     pal = palette(policy(cruise_x(0.5), (0.1, 0.1), (0.1, 0.1), (1.0, 1.0)))
 
