@@ -106,7 +106,9 @@ def cases(quick: bool = False) -> Iterator[tuple[str, Callable[[], list[Any]]]]:
             yield f"big_push/{i}/{capture}/{resume}", lambda p=push, o=opts: pushed(p, o)
     # A plant heavier than the controller believes, and one with a larger ball.
     for field, factor in (("body_mass", 1.15), ("ball_radius", 1.05)):
-        plant = dataclasses.replace(palette.params, **{field: getattr(palette.params, field) * factor})
+        plant = dataclasses.replace(
+            palette.params, **{field: getattr(palette.params, field) * factor}
+        )
 
         def mismatch(plant: Any = plant) -> list[Any]:
             hc = HybridController(lib, graph, params=plant)
