@@ -296,7 +296,7 @@ def test_balancing_mode_never_drives_toward_an_obstacle(box_room_controller) -> 
     xy = rng.uniform(0.0, 5.0, size=(600, 2))
     xy = xy[wm.clearance(xy) >= 0.2][:80]
     for here in xy:
-        q = hc._recovery_point(np.array([*here, 0.0, 0.0]), tree)
+        q = hc.recovery_point(np.array([*here, 0.0, 0.0]), tree)
         need = min(0.25, float(wm.clearance(here[None, :])[0]))
 
         def min_clearance(c: np.ndarray, here: np.ndarray = here) -> float:

@@ -105,7 +105,7 @@ def test_recovery_point_on_a_lazy_tree_reaches_the_goal(
     checked = 0
     for here in rng.uniform(0.3, 3.2, size=(12, 2)):
         tree = lazy.tree(goal)
-        q = lazy._recovery_point(np.array([*here, 0.0, 0.0]), tree)
+        q = lazy.recovery_point(np.array([*here, 0.0, 0.0]), tree)
         if np.array_equal(q, here):
             continue
         assert tuple(q) in good

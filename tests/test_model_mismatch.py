@@ -15,6 +15,7 @@ from gracenav.execution import ExecutionOptions, HybridController, TaskStatus
 from gracenav.graph import build_graph
 from gracenav.library import build_library
 from gracenav.palette import load_palette
+from gracenav.sim import Model3DPlant
 from gracenav.simulate import Push, state_from_position
 from gracenav.world import load_map
 
@@ -43,11 +44,12 @@ def test_every_mismatched_run_ends_in_bounded_time(library, scale) -> None:  # t
     lib, graph = library
     nominal = lib.palette.params
     plant = dataclasses.replace(nominal, **{k: getattr(nominal, k) * v for k, v in scale.items()})
-    robot = HybridController(lib, graph, params=plant)
+    robot = HybridController(lib, graph)
     x0 = state_from_position([0.0, 2.0, 0.0, 0.0], nominal.ball_radius)
     options = ExecutionOptions(max_time=40.0)
     t0 = time.perf_counter()
-    ep = robot.run(x0, [GOAL], disturbances=[Push(time=2.0, impulse=(0.0, -8.0))], options=options)
+    push = [Push(time=2.0, impulse=(0.0, -8.0))]
+    ep = robot.run(x0, [GOAL], disturbances=push, options=options, plant=Model3DPlant(plant))
     assert time.perf_counter() - t0 < 60.0
     assert ep.status in tuple(TaskStatus)
     # time advanced, and never far past max_time
@@ -67,32 +69,22 @@ def test_every_mismatched_run_ends_in_bounded_time(library, scale) -> None:  # t
 
 def test_policies_that_never_advance_stop_the_task(library, monkeypatch) -> None:  # type: ignore[no-untyped-def]
     """A plant on which every policy leaves D' at its first tick must not loop forever."""
-    import gracenav.execution as execution
-    from gracenav.simulate import SimulationResult, StopReason
+    from gracenav.execution.supervisor import MAX_STALLED_SEGMENTS
 
     calls = []
 
-    def stuck(x, ref, gains, **kwargs):  # type: ignore[no-untyped-def]
+    def stuck(x, x_ref, tau_ff, c, shape):  # type: ignore[no-untyped-def]
         calls.append(1)
-        return SimulationResult(
-            time=np.zeros(1),
-            states=np.asarray(x, dtype=float)[None, :],
-            inputs=np.zeros((1, 2)),
-            radius=gains.params.ball_radius,
-            max_lean=0.0,
-            max_torque=0.0,
-            saturated_ticks=0,
-            max_domain_value=2.0,
-            stop_reason=StopReason.DOMAIN_EXIT,
-        )
+        return np.zeros(2), 2.0  # every tick outside D'(t)
 
-    monkeypatch.setattr(execution, "simulate", stuck)
     lib, graph = library
     robot = HybridController(lib, graph)
+    monkeypatch.setattr(robot, "law", stuck)
     x0 = state_from_position([0.0, 2.0, 0.0, 0.0], lib.palette.params.ball_radius)
     ep = robot.run(x0, [GOAL])
     assert ep.status is TaskStatus.NO_PROGRESS
-    assert len(calls) == execution._MAX_STALLED_SEGMENTS + 1
+    # One tick of each stalled policy, then the hold command after the task ended.
+    assert len(calls) == MAX_STALLED_SEGMENTS + 1 + 1
     assert ep.time.shape == (1,) and ep.time[0] == 0.0
 
 

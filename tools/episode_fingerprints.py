@@ -61,6 +61,7 @@ def cases(quick: bool = False) -> Iterator[tuple[str, Callable[[], list[Any]]]]:
     from gracenav.library import build_library
     from gracenav.palette import load_palette
     from gracenav.scenarios import load_scenario, run_scenario
+    from gracenav.sim import Model3DPlant
     from gracenav.simulate import Push, SimulationOptions, state_from_position
     from gracenav.world import load_map
 
@@ -111,8 +112,9 @@ def cases(quick: bool = False) -> Iterator[tuple[str, Callable[[], list[Any]]]]:
         )
 
         def mismatch(plant: Any = plant) -> list[Any]:
-            hc = HybridController(lib, graph, params=plant)
-            return [hc.run(x0, goal, disturbances=[pushes[0]], options=ExecutionOptions())]
+            hc = HybridController(lib, graph)
+            sim = Model3DPlant(plant)
+            return [hc.run(x0, goal, disturbances=[pushes[0]], plant=sim)]
 
         yield f"mismatch/{field}", mismatch
     noisy = ExecutionOptions(simulation=SimulationOptions(position_noise_std=0.005, seed=3))

@@ -347,3 +347,76 @@ def closed_loop(
         summary_out[b, 6] = fall_tick
         for i in range(8):
             final_out[b, i] = x[i]
+
+
+@njit(cache=True, error_model="numpy")
+def tracking_tick(
+    r, fr, k, max_comp, friction_comp, torque_limit, x, x_ref, tau_ff, center, shape, out
+):
+    """One tick of the Fig. 2 cascade on the measured state ``x`` (8,): the torque,
+    saturated at ``torque_limit``, is written to ``out`` (2,); returns the value
+    (p − c)ᵀ P (p − c) of the monitored outer domain (``center`` (4,), ``shape``
+    (4, 4); 0 when ``center`` is empty), with p the position state of ``x`` (radius
+    ``r``). The same arithmetic as one tick of :func:`closed_loop` without noise."""
+    control_law(r, fr, k, max_comp, friction_comp, x, np.zeros(4), x_ref, tau_ff, out)
+    for i in range(2):
+        if out[i] > torque_limit:
+            out[i] = torque_limit
+        elif out[i] < -torque_limit:
+            out[i] = -torque_limit
+    val = 0.0
+    if center.shape[0] > 0:
+        pv = np.empty(4)
+        for i in range(2):
+            pv[i] = r * (x[i] + x[2 + i]) - center[i]
+            pv[2 + i] = r * (x[4 + i] + x[6 + i]) - center[2 + i]
+        for i in range(4):
+            for j in range(4):
+                val += pv[i] * shape[i, j] * pv[j]
+    return val
+
+
+@njit(cache=True, error_model="numpy")
+def plant_kick(c, x, impulse):
+    """Apply a world impulse ``impulse`` (3,) (N s) on the body centre of mass to the
+    state ``x`` (8,) in place (the velocity jump M⁻¹ Jᵀ i), as :func:`closed_loop`."""
+    wm = np.empty((4, 4))
+    wj = np.empty((3, 4))
+    wr = np.empty(4)
+    dq = np.empty(4)
+    mass_matrix(c, x[:4], wm)
+    com_jacobian(c, x[:4], wj)
+    for i in range(4):
+        wr[i] = wj[0, i] * impulse[0] + wj[1, i] * impulse[1] + wj[2, i] * impulse[2]
+    solve_spd(wm, wr, dq)
+    for i in range(4):
+        x[4 + i] += dq[i]
+
+
+@njit(cache=True, error_model="numpy")
+def plant_advance(c, fr, x, tau, force, drag, drag_gain, dt, substeps):
+    """Advance the state ``x`` (8,) in place by one control period ``dt`` (s) of
+    ``substeps`` RK4 steps with the torque ``tau`` (2,) held, a world force ``force``
+    (3,) (N) on the body centre of mass, and while ``drag[0] > 0`` a horizontal damper
+    of ``drag_gain`` (N s/m) pulling the body toward the velocity ``drag[1:3]`` (m/s);
+    the same arithmetic as one period of :func:`closed_loop`."""
+    h = dt / substeps
+    wm = np.empty((4, 4))
+    wh = np.empty(4)
+    wj = np.empty((3, 4))
+    wr = np.empty(4)
+    k1 = np.empty(8)
+    k2 = np.empty(8)
+    k3 = np.empty(8)
+    k4 = np.empty(8)
+    xt = np.empty(8)
+    f = force.copy()
+    for _s in range(substeps):
+        if drag[0] > 0.0:
+            com_jacobian(c, x[:4], wj)
+            for i in range(2):
+                vel = 0.0
+                for j in range(4):
+                    vel += wj[i, j] * x[4 + j]
+                f[i] = force[i] + drag_gain * (drag[1 + i] - vel)
+        _rk4(c, fr, x, tau, f, h, wm, wh, wj, wr, k1, k2, k3, k4, xt)

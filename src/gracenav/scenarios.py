@@ -768,6 +768,7 @@ def run_scenario(
     """
     from gracenav.execution import HybridController
     from gracenav.palette import load_palette
+    from gracenav.sim import make_plant
 
     palette = palette if palette is not None else load_palette()
     if scenario.planner == "decoupled":
@@ -787,11 +788,20 @@ def run_scenario(
     world_map, library, graph = prepared.world_map, prepared.library, prepared.graph
     options = _execution_options(scenario)
     radius = palette.params.ball_radius  # the controller's: the robot starts where it believes
-    probe = HybridController(library, graph, criterion=scenario.cost, params=plant_params)
+    probe = HybridController(library, graph, criterion=scenario.cost)
     _check_task(scenario, probe, options)
 
     def run(x0: np.ndarray) -> Any:
-        hc = HybridController(library, graph, criterion=scenario.cost, params=plant_params)
+        hc = HybridController(library, graph, criterion=scenario.cost)
+        sim = options.simulation
+        plant = make_plant(
+            scenario.plant,
+            plant_params,
+            substeps=sim.substeps,
+            position_noise_std=sim.position_noise_std,
+            velocity_noise_std=sim.velocity_noise_std,
+            seed=sim.seed,
+        )
         return hc.run(
             x0,
             scenario.goals,
@@ -799,6 +809,7 @@ def run_scenario(
             disturbances=scenario.disturbances,
             options=options,
             moving_obstacles=scenario.moving_obstacles,
+            plant=plant,
         )
 
     episodes, runs = _run_starts(scenario, world_map, plant_params, radius, run, progress)
@@ -868,18 +879,14 @@ def check_task(scenario: Scenario, prepared: PreparedLibrary, palette: Any | Non
     from gracenav.palette import load_palette
 
     palette = palette if palette is not None else load_palette()
-    hc = HybridController(
-        prepared.library, prepared.graph, criterion=scenario.cost, params=palette.params
-    )
+    hc = HybridController(prepared.library, prepared.graph, criterion=scenario.cost)
     _check_task(scenario, hc, _execution_options(scenario))
 
 
 def _check_task(scenario: Scenario, hc: Any, options: Any) -> None:
     """Every goal and every start must be possible before the first run starts: a bad
-    third start should not cost the first two runs. Each start is probed by a one-tick
-    run; the message names the key."""
-    from dataclasses import replace as _replace
-
+    third start should not cost the first two runs. Each start is probed by starting
+    the task (:meth:`HybridController.reset`); the message names the key."""
     from gracenav.errors import PlanningError
     from gracenav.simulate import state_from_position
 
@@ -890,11 +897,10 @@ def _check_task(scenario: Scenario, hc: Any, options: Any) -> None:
         except PlanningError as exc:
             key = "task.goal" if ptp else f"task.goals[{j}]"
             raise PlanningError(f"{scenario.source}: '{key}': {exc}") from None
-    probe = _replace(options, max_time=1.0 / 1024.0)
     for i, start in enumerate(scenario.starts):
         x0 = state_from_position(np.asarray(start), hc.gains.params.ball_radius)
         try:
-            hc.run(x0, scenario.goals, options=probe)
+            hc.reset(x0, scenario.goals, options=options)
         except PlanningError as exc:
             key = f"task.starts[{i}]" if ptp else "task.start"
             raise PlanningError(f"{scenario.source}: '{key}': {exc}") from None

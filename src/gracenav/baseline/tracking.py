@@ -27,7 +27,7 @@ if TYPE_CHECKING:
     from gracenav.simulate import Disturbance, Reference
     from gracenav.world import WorldMap
 
-__all__ = ["BASELINE_POLICY", "track_decoupled"]
+__all__ = ["BASELINE_POLICY", "DecoupledController", "track_decoupled"]
 
 FloatArray = NDArray[np.float64]
 
@@ -123,153 +123,244 @@ def track_decoupled(
     PlanningError
         If the first plan fails.
     """
-    from gracenav.execution import (
-        Episode,
-        TaskStatus,
-        _disturbed,
-        _Recorder,
-        _segment_disturbances,
-    )
-    from gracenav.simulate import Reference, SimulationOptions, StopReason, position_state, simulate
+    from gracenav.execution import Episode, TaskStatus, drive
+    from gracenav.sim import make_plant
+    from gracenav.simulate import SimulationOptions
 
-    options = options if options is not None else DecoupledOptions()
     sim = simulation if simulation is not None else SimulationOptions()
     plant_params = plant_params if plant_params is not None else gains.params
-    g = np.asarray(goal, dtype=float)
-    goal_xy = g[:2]
-    dt = 1.0 / 1024.0
-    r = gains.params.ball_radius
-    x = np.asarray(x0, dtype=float).copy()
-    p = position_state(x, r)
-    at_goal = bool(np.linalg.norm(p[:2] - goal_xy) <= goal_tolerance)
-
-    def plan_from_here() -> DecoupledPlan:
-        """A plan from the measured position and velocity ``p`` to the goal."""
-        return plan_decoupled(
-            world_map,
-            p[:2],
-            goal_xy,
-            footprint_radius=footprint_radius,
-            limits=limits,
-            start_velocity=p[2:],
-            options=options,
-            dt=dt,
-        )
-
-    plans: list[DecoupledPlan] = []
-    if not at_goal:  # else the goal is only held
-        plans.append(plan_from_here())
-    record = _Recorder()
-    applied: set[int] = set()
-    t = 0.0
-    ticks = 0
-    max_ticks = max(1, math.ceil(max_time / dt - 1e-9))
-    replans = 0
-    log: list[ReplanEvent] = []  # the replans that made a new plan
-    status = TaskStatus.TIMEOUT
-    tracking = not at_goal
-    hold_xy = goal_xy
-    err2 = 1.0 / options.replan_error**2
-
-    def run_segment(ref: Reference, ref_pos: FloatArray, monitor: bool) -> Any:
-        nonlocal t, ticks, x, p
-        n_seg = min(ref.num_ticks, max_ticks - ticks)
-        if n_seg < ref.num_ticks:
-            ref = Reference(ref.states[: n_seg + 1], ref.inputs[: n_seg + 1], ref.dt)
-            ref_pos = ref_pos[: n_seg + 1]
-        mon = None
-        if monitor:
-            shapes = np.zeros((n_seg + 1, 4, 4))
-            shapes[:, 0, 0] = shapes[:, 1, 1] = err2
-            mon = (np.ascontiguousarray(ref_pos[:, :4]), shapes)
-        local, inst_idx = _segment_disturbances(disturbances, t, dt, n_seg, applied)
-        res = simulate(
-            x,
-            ref,
-            gains,
-            params=plant_params,
-            plant=plant,  # type: ignore[arg-type]
-            disturbances=local,
-            options=sim,
-            monitor=mon,
-            stop_on_exit=monitor,
-        )
-        last = res.states.shape[0] - 1
-        for i in inst_idx:
-            if round((disturbances[i].time - t) / dt) <= last:  # type: ignore[union-attr]
-                applied.add(i)
-        record.add(t, res, BASELINE_POLICY, ref_pos)
-        t += last * dt
-        ticks += last
-        x = res.states[-1].copy()
-        p = position_state(x, r)
-        return res
-
-    def replan() -> bool:
-        nonlocal replans
-        replans += 1
-        if np.linalg.norm(p[:2] - goal_xy) <= goal_tolerance:
-            return False  # too short a path to plan: hold the goal
-        try:
-            plans.append(plan_from_here())
-        except PlanningError:
-            return False
-        log.append(ReplanEvent(t, "tracking_error", plans[-1].seconds, 0, 0))
-        return True
-
-    while ticks < max_ticks:
-        if tracking:
-            ref, ref_pos, _ = _reference(plans[-1].timed, gains)
-            res = run_segment(ref, ref_pos, replans < options.max_replans)
-            if res.stop_reason is StopReason.FELL:
-                status = TaskStatus.FELL
-                break
-            if res.stop_reason is StopReason.DOMAIN_EXIT:
-                if _disturbed(disturbances, t):  # held and moved: wait, replan after
-                    tracking = False
-                    hold_xy = p[:2].copy()
-                elif not replan():  # no path from here: keep station until one exists
-                    tracking = False
-                    near = np.linalg.norm(p[:2] - goal_xy) <= goal_tolerance
-                    hold_xy = goal_xy if near else p[:2].copy()
-                continue
-            tracking = False
-        else:
-            hold = Reference.hold(hold_xy, options.hold_chunk, params=gains.params)
-            ref_pos = np.zeros((hold.num_ticks + 1, 6))
-            ref_pos[:, :2] = hold_xy
-            res = run_segment(hold, ref_pos, False)
-            if res.stop_reason is StopReason.FELL:
-                status = TaskStatus.FELL
-                break
-        if (
-            np.linalg.norm(p[:2] - goal_xy) <= goal_tolerance
-            and np.linalg.norm(p[2:]) <= goal_tolerance
-        ):
-            status = TaskStatus.GOAL_REACHED
-            break
-        far = np.linalg.norm(p[:2] - goal_xy) > options.replan_error
-        if (
-            not tracking
-            and far
-            and replans < options.max_replans
-            and not _disturbed(disturbances, t)
-            and replan()
-        ):
-            tracking = True
-            hold_xy = goal_xy
-    time, states, inputs, policy, reference = record.arrays(t, x)
+    controller = DecoupledController(
+        world_map,
+        goal,
+        footprint_radius=footprint_radius,
+        gains=gains,
+        limits=limits,
+        max_time=max_time,
+        goal_tolerance=goal_tolerance,
+        options=options,
+    )
+    robot = make_plant(
+        plant,  # type: ignore[arg-type]
+        plant_params,
+        substeps=sim.substeps,
+        position_noise_std=sim.position_noise_std,
+        velocity_noise_std=sim.velocity_noise_std,
+        seed=sim.seed,
+    )
+    robot.reset(np.asarray(x0, dtype=float))
+    controller.reset(robot.measure(), fall_lean=sim.fall_lean)
+    trace = drive(
+        controller,
+        robot,
+        dt=controller.dt,
+        max_ticks=controller.max_ticks + 1,
+        disturbances=disturbances,
+    )
+    status = controller.status
     episode = Episode(
-        time=time,
-        states=states,
-        inputs=inputs,
-        policy=policy,
-        reference=reference,
+        time=trace.time,
+        states=trace.states,
+        inputs=trace.inputs,
+        policy=trace.policy,
+        reference=trace.reference,
         events=(),
         status=status,
-        goals_reached=((t, 0),) if status is TaskStatus.GOAL_REACHED else (),
-        tree_seconds=tuple(pl.seconds for pl in plans),
-        radius=plant_params.ball_radius,
-        replans=tuple(log),
+        goals_reached=((trace.time[-1], 0),) if status is TaskStatus.GOAL_REACHED else (),
+        tree_seconds=tuple(pl.seconds for pl in controller.plans),
+        radius=trace.radius,
+        replans=tuple(controller.log),
     )
-    return episode, plans
+    return episode, controller.plans
+
+
+class DecoupledController:
+    """The baseline as a per-tick controller: track the timed path's reference, replan
+    from the measured state when the tracking error exceeds the threshold (or after a
+    hold), hold the goal (or where the robot is) otherwise.
+
+    Parameters are those of :func:`track_decoupled`. :meth:`reset` plans the first path,
+    :meth:`step` returns one command a tick (``policy`` :data:`BASELINE_POLICY`).
+    """
+
+    def __init__(
+        self,
+        world_map: WorldMap,
+        goal: ArrayLike,
+        *,
+        footprint_radius: float,
+        gains: ControllerGains,
+        limits: MotionLimits,
+        max_time: float = 120.0,
+        goal_tolerance: float = 0.05,
+        options: DecoupledOptions | None = None,
+    ) -> None:
+        from gracenav.execution.supervisor import TrackingLaw
+        from gracenav.sim import CONTROL_RATE
+
+        self.world_map = world_map
+        self.goal_xy = np.asarray(goal, dtype=float)[:2]
+        self.footprint_radius = footprint_radius
+        self.gains = gains
+        self.limits = limits
+        self.options = options if options is not None else DecoupledOptions()
+        self.goal_tolerance = goal_tolerance
+        self.dt = 1.0 / CONTROL_RATE
+        self.r = float(gains.params.ball_radius)
+        self.law = TrackingLaw(gains)
+        self.max_ticks = max(1, math.ceil(max_time / self.dt - 1e-9))
+        self.plans: list[DecoupledPlan] = []
+        self.log: list[ReplanEvent] = []
+
+    def reset(self, x0: ArrayLike, *, fall_lean: float = math.inf) -> None:
+        """Start from the measured state ``x0`` (8,): plan the first path.
+
+        Raises
+        ------
+        PlanningError
+            If the first plan fails.
+        """
+        from gracenav.execution import TaskStatus
+        from gracenav.simulate import position_state
+
+        self.x = np.asarray(x0, dtype=float).copy()
+        self.p = position_state(self.x, self.r)
+        at_goal = bool(np.linalg.norm(self.p[:2] - self.goal_xy) <= self.goal_tolerance)
+        self.plans = []
+        self.log = []
+        if not at_goal:  # else the goal is only held
+            self.plans.append(self._plan())
+        self.tracking = not at_goal
+        self.hold_xy = self.goal_xy
+        self.replans = 0
+        self.ticks = 0
+        self.status = TaskStatus.RUNNING
+        self.segment: Any = None
+        self.fall_lean = fall_lean
+        self.held = False
+        self.final: Any = None
+        self.err2 = 1.0 / self.options.replan_error**2
+
+    def _plan(self) -> DecoupledPlan:
+        """A plan from the measured position and velocity to the goal."""
+        return plan_decoupled(
+            self.world_map,
+            self.p[:2],
+            self.goal_xy,
+            footprint_radius=self.footprint_radius,
+            limits=self.limits,
+            start_velocity=self.p[2:],
+            options=self.options,
+            dt=self.dt,
+        )
+
+    def _replan(self) -> bool:
+        self.replans += 1
+        if np.linalg.norm(self.p[:2] - self.goal_xy) <= self.goal_tolerance:
+            return False  # too short a path to plan: hold the goal
+        try:
+            self.plans.append(self._plan())
+        except PlanningError:
+            return False
+        t = self.ticks * self.dt
+        self.log.append(ReplanEvent(t, "tracking_error", self.plans[-1].seconds, 0, 0))
+        return True
+
+    def _begin(self) -> None:
+        from gracenav.execution.supervisor import _Segment
+        from gracenav.simulate import Reference
+
+        if self.tracking:
+            ref, ref_pos, _ = _reference(self.plans[-1].timed, self.gains)
+            monitor = self.replans < self.options.max_replans
+        else:
+            ref = Reference.hold(self.hold_xy, self.options.hold_chunk, params=self.gains.params)
+            ref_pos = np.zeros((ref.num_ticks + 1, 6))
+            ref_pos[:, :2] = self.hold_xy
+            monitor = False
+        n = min(ref.num_ticks, self.max_ticks - self.ticks)
+        centers = shapes = None
+        if monitor:
+            shapes = np.zeros((n + 1, 4, 4))
+            shapes[:, 0, 0] = shapes[:, 1, 1] = self.err2
+            centers = np.ascontiguousarray(ref_pos[: n + 1, :4])
+        self.segment = _Segment(
+            BASELINE_POLICY,
+            ref.states[: n + 1],
+            ref.inputs[: n + 1],
+            ref_pos[: n + 1],
+            centers,
+            shapes,
+            n,
+        )
+
+    def step(self, t: float, x: ArrayLike, *, held: bool = False) -> Any:
+        """The command (:class:`gracenav.execution.Command`) for one tick."""
+        from gracenav.execution import Command, TaskStatus
+        from gracenav.execution.supervisor import _NO_CENTER, _NO_SHAPE
+        from gracenav.simulate import position_state
+
+        xs = np.asarray(x, dtype=float)
+        if self.final is not None:
+            return self.final
+        self.x, self.held = xs, held
+        while self.status is TaskStatus.RUNNING:
+            if self.segment is None:
+                if self.ticks >= self.max_ticks:
+                    self.status = TaskStatus.TIMEOUT
+                    break
+                self._begin()
+                continue
+            seg = self.segment
+            k = seg.k
+            if not (abs(xs[2]) <= self.fall_lean and abs(xs[3]) <= self.fall_lean):
+                self.status = TaskStatus.FELL
+                break
+            if seg.centers is not None:
+                tau, val = self.law(
+                    xs, seg.ref_states[k], seg.ref_inputs[k], seg.centers[k], seg.shapes[k]
+                )
+            else:
+                tau, val = self.law(xs, seg.ref_states[k], seg.ref_inputs[k], _NO_CENTER, _NO_SHAPE)
+            exited = val > 1.0
+            if exited or k == seg.n:
+                self.segment = None
+                self.p = position_state(xs, self.r)
+                self._end(exited)
+                continue
+            seg.k += 1
+            self.ticks += 1
+            return Command(tau, False, TaskStatus.RUNNING, seg.policy, seg.ref_pos[k])
+        self.final = Command(np.zeros(2), True, self.status, BASELINE_POLICY, np.zeros(6))
+        return self.final
+
+    def _end(self, exited: bool) -> None:
+        from gracenav.execution import TaskStatus
+
+        p, opt = self.p, self.options
+        if self.tracking:
+            if exited:
+                if self.held:  # held and moved: wait, replan after
+                    self.tracking = False
+                    self.hold_xy = p[:2].copy()
+                elif not self._replan():  # no path from here: keep station until one exists
+                    self.tracking = False
+                    near = np.linalg.norm(p[:2] - self.goal_xy) <= self.goal_tolerance
+                    self.hold_xy = self.goal_xy if near else p[:2].copy()
+                return
+            self.tracking = False
+        if (
+            np.linalg.norm(p[:2] - self.goal_xy) <= self.goal_tolerance
+            and np.linalg.norm(p[2:]) <= self.goal_tolerance
+        ):
+            self.status = TaskStatus.GOAL_REACHED
+            return
+        far = np.linalg.norm(p[:2] - self.goal_xy) > opt.replan_error
+        if (
+            not self.tracking
+            and far
+            and self.replans < opt.max_replans
+            and not self.held
+            and self._replan()
+        ):
+            self.tracking = True
+            self.hold_xy = self.goal_xy

@@ -1,0 +1,30 @@
+"""The hybrid controller (paper Sec. IV-C, V-B), tick by tick, and episodes."""
+
+from gracenav.execution.controller import HybridController, TerminalPolicy
+from gracenav.execution.episode import Episode, ExecutionLog, Trace, drive, held_at
+from gracenav.execution.types import (
+    CAPTURE,
+    TERMINAL,
+    Command,
+    EventReason,
+    ExecutionOptions,
+    SwitchEvent,
+    TaskStatus,
+)
+
+__all__ = [
+    "CAPTURE",
+    "TERMINAL",
+    "Command",
+    "Episode",
+    "EventReason",
+    "ExecutionLog",
+    "ExecutionOptions",
+    "HybridController",
+    "SwitchEvent",
+    "TaskStatus",
+    "TerminalPolicy",
+    "Trace",
+    "drive",
+    "held_at",
+]

@@ -1,0 +1,649 @@
+"""The hybrid controller (paper Sec. IV-C, V-B): execute and switch motion policies,
+one control tick at a time.
+
+A timer is reset when a policy starts; a policy starts only if the position
+state is in its start domain S; it runs until the timer reaches t_f and the
+state is in its goal domain G, then the tree's next policy takes over (G ⊂ S
+of the next by construction: a graceful switch). Every control tick the state
+is checked against the outer domain D'(t); on exit (a large disturbance) the
+current policy stops and the policy with the lowest cost-to-go whose S
+contains the state starts, without replanning. If there is none, a verified
+catch is placed at the state (:mod:`gracenav.capture`), else the robot
+switches to balancing (station-keeping) mode: the only non-graceful switches
+are these recoveries.
+
+:meth:`HybridController.step` runs that supervisor per tick on the measured state;
+the policies run between switches in *segments* (a policy, or the part of it up to
+the next look at the moving obstacles, or a chunk of balancing mode), and at the
+end of a segment the same decisions are taken as when whole segments were
+simulated at once.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from gracenav.capture import CapturePlan, PlacedPolicy, capture_for
+from gracenav.domains import EllipsoidalDomain
+from gracenav.errors import ConfigError, PlanningError
+from gracenav.execution.episode import Episode, ExecutionLog, drive
+from gracenav.execution.supervisor import BALANCING_MARGIN, Supervisor, TrackingLaw
+from gracenav.execution.types import (
+    CAPTURE,
+    Command,
+    ExecutionOptions,
+    TaskStatus,
+)
+from gracenav.graph import PreparesGraph
+from gracenav.library import PolicyLibrary, quarter_turn
+from gracenav.params import BallbotParams
+from gracenav.planning import CostCriterion, LazyPolicyTree, PolicyTree, plan_tree
+from gracenav.policies import PrimitiveKind, flat_position_state
+from gracenav.replanning import HOLD_MARGIN, ObstacleTracker
+from gracenav.sim.plant import CONTROL_RATE, Plant, make_plant
+from gracenav.simulate import Disturbance, position_state
+from gracenav.world.moving import MovingObstacle
+
+__all__ = ["HybridController", "TerminalPolicy"]
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
+
+#: Nearest rest-trim starts balancing mode considers as the point to hold.
+_BALANCING_SEARCH = 64
+#: Most policies a lazy tree closes to find where balancing mode holds the robot.
+_LAZY_RECOVERY_BUDGET = 200_000
+
+#: Distance (m, m/s) within which a goal counts as the end state of a lattice trim.
+_ON_LATTICE = 1e-9
+
+
+@dataclass(frozen=True)
+class TerminalPolicy(PlacedPolicy):
+    """A capture regulator of the palette placed at a goal off the lattice: a
+    :class:`~gracenav.capture.PlacedPolicy` at heading 0 whose reference starts (and
+    holds) at the goal.
+
+    Attributes
+    ----------
+    approach : int
+        The library rest trim the task reaches first; its G lies in this S.
+    """
+
+    approach: int
+
+    @property
+    def goal_xy(self) -> NDArray[np.float64]:
+        """Where it holds the robot (m)."""
+        return self.start_xy
+
+    def outer_domain(self, t: float) -> EllipsoidalDomain:
+        """D'(t) in the world frame."""
+        return self._world(self.policy.outer_domain(t))
+
+    @property
+    def name(self) -> str:
+        """E.g. ``regulate[ep=0.55m]@(1.23, 2.5)``."""
+        x, y = self.goal_xy
+        return f"{self.policy.name}@({x:g}, {y:g})"
+
+
+class HybridController:
+    """Executes navigation tasks with a policy library, its graph and single-goal trees.
+
+    Parameters
+    ----------
+    library : PolicyLibrary
+    graph : PreparesGraph
+    criterion : {"time", "distance"}
+        Optimality criterion of the trees.
+    params : BallbotParams, optional
+        The robot as the controller knows it (default: the palette's, which its gains
+        were designed for): its ball radius turns measured angles into position states
+        for every decision (domain membership, the goal test, captures). The plant's
+        true parameters are the plant's own (:meth:`run`'s ``plant``) and may differ
+        (model mismatch).
+
+    Notes
+    -----
+    Per tick: :meth:`reset` starts a task, then :meth:`step` is called once every
+    control tick (:attr:`control_rate`) with the measured state and returns the
+    torque to hold until the next tick. :meth:`run` is such a loop over a simulated
+    (or a user's) :class:`~gracenav.sim.Plant`.
+    """
+
+    def __init__(
+        self,
+        library: PolicyLibrary,
+        graph: PreparesGraph,
+        *,
+        criterion: CostCriterion | str = CostCriterion.TIME,
+        params: BallbotParams | None = None,
+    ) -> None:
+        self.library = library
+        self.graph = graph
+        self.criterion = CostCriterion(criterion) if isinstance(criterion, str) else criterion
+        self.palette = library.palette
+        self.gains = self.palette.gains
+        self.params = params if params is not None else self.palette.params
+        self._adjacency = graph.search_form(self.criterion.value)
+        self._trees: dict[int, PolicyTree | LazyPolicyTree] = {}
+        self._last_goal = -1  # the goal policy of the last tree asked for
+        # Terminal regulators depend on the library and the goal only: shared by every
+        # controller on the same library (a scenario's runs, a campaign's trials).
+        self._terminals: dict[tuple[float, ...], tuple[TerminalPolicy, ...]] = (
+            library._cache.setdefault("terminal_policies", {})
+        )
+        self.tree_seconds: list[float] = []
+        self.dt = 1.0 / CONTROL_RATE
+        self.radius = float(self.gains.params.ball_radius)
+        self.law = TrackingLaw(self.gains)
+        self._task: Supervisor | None = None
+
+    @property
+    def control_rate(self) -> float:
+        """The rate (Hz) :meth:`step` must be called at: the palette's verification rate."""
+        return CONTROL_RATE
+
+    # -- planning ------------------------------------------------------------------
+    def goal_policy(self, goal: ArrayLike) -> int:
+        """The closest trim policy (Euclidean, to its G's centre; the shortest of equally
+        close ones) whose G contains ``goal``; for a goal at rest that no trim's G
+        contains, the rest trim the task ends on before the terminal regulator at the
+        goal takes over (:meth:`terminal_policies`).
+
+        Raises
+        ------
+        PlanningError
+            If the goal is outside the map, in an obstacle (grown by the footprint), or
+            no trim policy's goal domain contains it and no terminal regulator fits
+            there (outside coverage).
+        """
+        g = np.asarray(goal, dtype=float)
+        if g.shape != (4,) or not np.all(np.isfinite(g)):
+            raise ConfigError(f"a goal is a position state (x, y, xdot, ydot), got {goal!r}")
+        wm = self.library.world_map
+        (x0, y0), (x1, y1) = wm.bounds
+        if not (x0 <= g[0] <= x1 and y0 <= g[1] <= y1):
+            raise PlanningError(
+                f"goal ({g[0]:g}, {g[1]:g}) is outside the map [{x0:g}, {x1:g}] × [{y0:g}, {y1:g}]"
+            )
+        if float(wm.clearance(g[None, :2])[0]) < self.library.footprint_radius:
+            raise PlanningError(
+                f"goal ({g[0]:g}, {g[1]:g}) is inside an obstacle or closer to one than the "
+                f"robot's footprint radius {self.library.footprint_radius:g} m"
+            )
+        trims = self.library.trim_indices()
+        ends = self.library.end_state[trims]
+        candidates = []
+        # Nearest first; among equally near trims (a rest trim and the longer capture
+        # trim end at the same state) the shortest, so a task does not end on a hold
+        # longer than it needs.
+        order = np.lexsort((self.library.durations[trims], np.linalg.norm(ends - g, axis=1)))
+        near = trims[order][:64]
+        inside = np.flatnonzero(self._goal_domains_contain(near, g))
+        if inside.size:
+            candidates.append(int(near[inside[0]]))
+        at_rest = bool(np.all(g[2:] == 0.0))
+        exact = bool(candidates) and bool(
+            np.linalg.norm(self.library.end_state[candidates[0]] - g) <= _ON_LATTICE
+        )
+        if candidates and (exact or not at_rest):
+            return candidates[0]
+        # A goal at rest off the lattice: a terminal regulator brings the robot onto it;
+        # without one, the trim whose G contains it (within G's extent of the goal).
+        terminals = self.terminal_policies(g) if at_rest else ()
+        if terminals:
+            return terminals[0].approach
+        if candidates:
+            return candidates[0]
+        where = ", ".join(f"{v:g}" for v in g)
+        if np.all(g[2:] == 0.0):
+            raise PlanningError(
+                f"goal ({where}) is outside coverage: no trim policy of the library has it in "
+                "its goal domain and no capture regulator fits there (it needs a clearance of "
+                "the footprint plus its outer domain radius, and a rest trim of the library "
+                "within its start domain); move the goal away from obstacles or use more "
+                "lattice halvings"
+            )
+        raise PlanningError(
+            f"goal ({where}) is outside coverage: a moving goal must be a cruise trim of the "
+            "library (on the instantiation lattice, at a trim velocity, away from obstacles)"
+        )
+
+    def _goal_domains_contain(self, rows: IntArray, g: FloatArray) -> BoolArray:
+        """Whether G of each library row in ``rows`` contains the position state ``g``:
+        ``g`` taken into each policy's own frame and tested against its G there (the
+        same ellipsoid as the world-frame G, rotated by a quarter turn), vectorised."""
+        lib = self.library
+        out = np.zeros(rows.shape, dtype=bool)
+        for p in np.unique(lib.palette_index[rows]):
+            sel = np.flatnonzero(lib.palette_index[rows] == p)
+            pol = self.palette.policies[int(p)]
+            local = pol.domain(pol.duration)
+            r = rows[sel]
+            q = np.empty((r.size, 4))
+            for k in range(4):  # world -> policy frame: rotate by -k quarter turns
+                m = lib.orientation[r] == k
+                if np.any(m):
+                    rt = quarter_turn(k).T
+                    q[m, :2] = (g[:2] - lib.start_xy[r[m]]) @ rt.T
+                    q[m, 2:] = g[2:] @ rt.T
+            out[sel] = local.contains(q)
+        return out
+
+    def _terminal(self, goal: ArrayLike, goal_id: int) -> TerminalPolicy | None:
+        """The terminal regulator a task toward ``goal`` ends with, if ``goal_id`` is the
+        approach trim :meth:`goal_policy` chose for it."""
+        terms = self._terminals.get(tuple(float(v) for v in np.asarray(goal, dtype=float)))
+        for term in terms or ():
+            if term.approach == goal_id:
+                return term
+        return None
+
+    def terminal_policies(self, goal: ArrayLike) -> tuple[TerminalPolicy, ...]:
+        """Terminal regulators for a goal at rest off the lattice, best first.
+
+        For each capture regulator of the palette, largest first, whose outer domain
+        (a disc of radius ``outer_factors[0]`` × e_p(S) around the goal, not shrinking)
+        grown by the footprint is clear of obstacles: every rest trim of the library
+        whose G lies in the regulator's S at the goal (exact ellipsoid containment),
+        nearest first. Empty when the palette has no regulators or none fits.
+        """
+        g = np.asarray(goal, dtype=float)
+        key = tuple(float(v) for v in g)
+        got = self._terminals.get(key)
+        if got is not None:
+            return got
+        lib = self.library
+        clearance = float(lib.world_map.clearance(g[None, :2])[0]) - lib.footprint_radius
+        rest = lib.trim_indices(PrimitiveKind.REST)
+        out: list[TerminalPolicy] = []
+        regs = sorted(
+            (p for p in self.palette.policies if p.capture),
+            key=lambda p: -p.start_radii.position,
+        )
+        for reg in regs:
+            reach = reg.outer_factors[0] * reg.start_radii.position
+            if clearance < reach:
+                continue
+            ends = lib.end_state[rest]
+            dist = np.linalg.norm(ends[:, :2] - g[:2], axis=1)
+            near = np.flatnonzero(dist <= reg.start_radii.position)
+            near = near[np.lexsort((lib.durations[rest[near]], dist[near]))]
+            for i in rest[near]:
+                term = TerminalPolicy(reg, 0.0, g[:2].copy(), int(i))
+                if term.start_domain.contains_domain(lib.policy(int(i)).goal_domain):
+                    out.append(term)
+            if out:
+                break
+        result = tuple(out)
+        self._terminals[key] = result
+        return result
+
+    def tree(self, goal_policy: int) -> PolicyTree | LazyPolicyTree:
+        """The single-goal optimal tree toward library row ``goal_policy`` (cached).
+
+        The whole tree (:func:`plan_tree`) when the graph keeps its reversed graph
+        (:meth:`PreparesGraph.search_form`, up to :data:`gracenav.graph.STORED_EDGES`
+        edges); above that, a :class:`LazyPolicyTree` that :meth:`best_policy` and
+        :meth:`recovery_point` settle where they read it (a whole tree there takes
+        tens of seconds); its entry in :attr:`tree_seconds` is its allocation, the
+        search runs as it is read. A lazy tree is settled at the goal policy of the tree
+        asked for before (if it is another): a surveillance task reads the next goal's
+        tree at the previous goal policy.
+        """
+        tree = self._trees.get(goal_policy)
+        if tree is None:
+            t0 = _time.perf_counter()
+            if self._adjacency is self.graph:
+                tree = LazyPolicyTree(self.graph, goal_policy, criterion=self.criterion)
+            else:
+                tree = plan_tree(self._adjacency, goal_policy, criterion=self.criterion)
+            self.tree_seconds.append(_time.perf_counter() - t0)
+            self._trees[goal_policy] = tree
+        if isinstance(tree, LazyPolicyTree) and self._last_goal not in (-1, goal_policy):
+            tree.settle([self._last_goal])
+        self._last_goal = goal_policy
+        return tree
+
+    def recovery_point(
+        self,
+        p: FloatArray,
+        tree: PolicyTree | LazyPolicyTree,
+        dyn: ObstacleTracker | None = None,
+    ) -> FloatArray:
+        """Where balancing mode holds the robot: the start of the nearest rest trim of
+        the library that reaches the goal and that the robot can be driven to without
+        driving toward an obstacle: along the straight segment from the robot to it
+        (sampled every map cell) the clearance stays at least the footprint plus
+        :data:`BALANCING_MARGIN`, or the robot's own clearance if that is smaller. The
+        current position if none of the :data:`_BALANCING_SEARCH` nearest qualifies.
+        With moving obstacles (``dyn``), a point or a segment a known obstacle may reach
+        within :data:`gracenav.replanning.HOLD_HORIZON` is not a candidate either, and
+        when they block the way every unblocked rest trim is a candidate.
+
+        On a lazy tree, "reaches the goal" is what the search knows: it is settled (at
+        most :data:`_LAZY_RECOVERY_BUDGET` more policies closed) until the cheapest of
+        the :data:`_BALANCING_SEARCH` nearest rest trims is closed, and every rest trim
+        with a path to the goal found so far (closed or open) is a candidate; one the
+        search has not met yet is not."""
+        here = np.asarray(p[:2], dtype=float)
+        all_rest = self.library.trim_indices(PrimitiveKind.REST)
+        if isinstance(tree, LazyPolicyTree):
+            near = np.argsort(np.linalg.norm(self.library.start_xy[all_rest] - here, axis=1))
+            tree.settle(all_rest[near[:_BALANCING_SEARCH]], best=True, budget=_LAZY_RECOVERY_BUDGET)
+            reaches = tree.reached(all_rest)
+        else:
+            reaches = np.isfinite(tree.cost_to_go[all_rest])
+        passes = [all_rest[reaches | (all_rest == tree.goal)]]
+        if dyn is not None and np.any(dyn.blocked):
+            # The way is blocked: any free rest trim will do to wait for it to clear.
+            passes.append(all_rest[~dyn.blocked[all_rest]])
+        wm = self.library.world_map
+        # A robot already nearer than that to an obstacle may not get any nearer.
+        need = min(
+            self.library.footprint_radius + BALANCING_MARGIN,
+            float(wm.clearance(here[None, :])[0]),
+        )
+        step = float(wm.resolution)
+        for rest in passes:
+            xy = self.library.start_xy[rest]
+            if dyn is not None:  # only points clear of the obstacles' predicted motion
+                xy = xy[dyn.points_clear(xy, BALANCING_MARGIN + HOLD_MARGIN)]
+            order = np.argsort(np.linalg.norm(xy - here, axis=1), kind="stable")
+            for q in xy[order[:_BALANCING_SEARCH]]:
+                n = max(2, int(np.ceil(np.linalg.norm(q - here) / step)) + 1)
+                seg = here + np.linspace(0.0, 1.0, n)[:, None] * (q - here)
+                if np.all(wm.clearance(seg[1:]) >= need) and (
+                    dyn is None or dyn.path_clear(here, seg[1:], BALANCING_MARGIN + HOLD_MARGIN)
+                ):
+                    return np.asarray(q, dtype=float)
+        return here
+
+    def capture_plan(self, x: ArrayLike, tree: PolicyTree | LazyPolicyTree) -> CapturePlan | None:
+        """The cheapest verified capture (catch, shift, rest trim toward the tree's goal)
+        of the model state ``x`` (8,), or None (see :class:`gracenav.capture.Capture`).
+        Settled and still catches are considered when the lean and lean rate (norms
+        over both axes) are within their band of upright; the pushed ones test the
+        flat output's position state (catches start upright)."""
+        capture = capture_for(self.library)
+        xs = np.asarray(x, dtype=float)
+        p = position_state(xs, self.params.ball_radius)
+        flat = flat_position_state(p, xs[2:4], xs[6:8], self.params)
+        deviation = (float(np.hypot(*xs[2:4])), float(np.hypot(*xs[6:8])))
+        settle = None
+        if isinstance(tree, LazyPolicyTree):  # close the cheapest of the rows asked for
+            lazy = tree
+
+            def settle(rows: IntArray) -> None:
+                lazy.settle(rows, best=True, budget=_LAZY_RECOVERY_BUDGET)
+
+        return capture.plan(
+            p,
+            lean_deviation=deviation,
+            cost_to_go=tree.cost_to_go,
+            settle=settle,
+            flat_state=flat,
+        )
+
+    def best_policy(self, p: ArrayLike, tree: PolicyTree | LazyPolicyTree) -> int:
+        """The policy with the lowest cost-to-go whose S contains ``p`` (−1 if none).
+
+        Capture regulators are candidates only when no other policy that reaches the
+        goal contains ``p``: they catch a robot the navigation policies cannot. A lazy
+        tree is settled until the cheapest of the other policies (of the regulators if
+        only they contain ``p``) is closed, with its ties: the same choice as the whole
+        tree's (a whole search if none of them reaches the goal)."""
+        hits = self.library.start_domain_contains(np.asarray(p, dtype=float)[None, :])
+        idx = hits.indices[hits.indptr[0] : hits.indptr[1]]
+        if idx.size == 0:
+            return -1
+        capture = self.library.types.is_capture[self.library.type_index[idx]]
+        if isinstance(tree, LazyPolicyTree):
+            tree.settle(idx[~capture] if np.any(~capture) else idx, best=True)
+        cost = tree.cost_to_go[idx]
+        ok = np.isfinite(cost)
+        if not np.any(ok):
+            return -1
+        if np.any(ok & ~capture):
+            cost = np.where(capture, np.inf, cost)
+        return int(idx[int(np.argmin(cost))])
+
+    # -- execution -----------------------------------------------------------------
+    def reset(
+        self,
+        x0: ArrayLike,
+        goals: Sequence[ArrayLike],
+        *,
+        loops: int = 1,
+        options: ExecutionOptions | None = None,
+        moving_obstacles: Sequence[MovingObstacle] = (),
+    ) -> None:
+        """Start a task from the measured state ``x0``: reach ``goals`` in order,
+        ``loops`` times (surveillance), or one goal once (point-to-point). Plans the
+        first tree (and, when no library policy's start domain holds ``x0``, a catch)
+        before it returns; call it before the control loop starts.
+
+        Parameters
+        ----------
+        x0 : array_like, shape (8,)
+            Measured state (:class:`gracenav.model.Ballbot3D` convention).
+        goals : sequence of array_like, shape (4,)
+            Goal position states (x, y, ẋ, ẏ) (m, m/s): rest goals for point-to-point,
+            moving goals (cruise velocities) for surveillance.
+        loops : int
+            How many times to go through ``goals``.
+        options : ExecutionOptions, optional
+        moving_obstacles : sequence of MovingObstacle
+            Obstacles not in the map, which the controller learns of within its sensing
+            range (``options.sensing``): it then blocks the policies they may meet,
+            repairs the tree every sensing period, switches away from a policy that
+            becomes blocked while it runs, and holds an unblocked rest trim while no
+            way to the goal is free (:mod:`gracenav.replanning`).
+
+        Raises
+        ------
+        ConfigError
+            Malformed arguments.
+        PlanningError
+            A goal is impossible, or the first goal is unreachable from the start.
+        """
+        options = options if options is not None else ExecutionOptions()
+        if loops < 1:
+            raise ConfigError(f"loops must be >= 1, got {loops!r}")
+        if len(goals) == 0:
+            raise ConfigError("a task needs at least one goal")
+        x = np.array(x0, dtype=float)
+        if x.shape != (8,) or not np.all(np.isfinite(x)):
+            raise ConfigError(f"a start state is a finite array of shape (8,), got {x0!r}")
+        self._task = None
+        goal_ids = [self.goal_policy(g) for g in goals]
+        terminals: list[TerminalPolicy | None] = [
+            self._terminal(g, i) for g, i in zip(goals, goal_ids, strict=True)
+        ]
+        p = position_state(x, self.radius)
+        tree = self.tree(goal_ids[0])
+        current = self.best_policy(p, tree)
+        if current < 0 and len(goals) == 1:
+            # The goal's trim may lie on a sub-lattice the start cannot reach (maneuvers
+            # move by whole multiples of d): approach it through another rest trim whose
+            # G lies in a terminal regulator at the goal.
+            for cand in self.terminal_policies(goals[0]):
+                tree = self.tree(cand.approach)
+                current = self.best_policy(p, tree)
+                if current >= 0:
+                    goal_ids, terminals = [cand.approach], [cand]
+                    break
+            else:
+                tree = self.tree(goal_ids[0])
+        dyn = (
+            ObstacleTracker(self.library, self.graph, moving_obstacles, options.sensing)
+            if moving_obstacles
+            else None
+        )
+        holding = False
+        if dyn is not None and current >= 0:
+            tree = dyn.update(0.0, p[:2], tree)
+            current = self.best_policy(p, tree)
+            if current < 0:
+                current = dyn.hold_policy(p)
+                holding = current >= 0
+        if options.capture:
+            capture_for(self.library)  # built once per library, here rather than mid-task
+        plan = None
+        if current < 0 and options.capture and dyn is None:
+            # A start inside no library S may lie in a catch's (coverage counts it).
+            plan = self.capture_plan(x, tree)
+            if plan is not None:
+                current = CAPTURE
+        if current < 0:
+            hits = self.library.start_domain_contains(p[None, :])
+            why = (
+                "no library policy's start domain contains the start state, and no catch "
+                "placed there clears the obstacles (outside coverage)"
+                if hits.nnz == 0
+                else "the goal cannot be reached from any policy whose start domain contains it"
+            )
+            where = ", ".join(f"{v:.3g}" for v in p)
+            raise PlanningError(f"start ({where}): {why}")
+        self._task = Supervisor(
+            self,
+            options,
+            sequence=goal_ids * loops,
+            terminals=terminals * loops,
+            goal_states=[np.asarray(g, dtype=float) for g in goals] * loops,
+            tree=tree,
+            current=current,
+            dyn=dyn,
+            holding=holding,
+            capture_plan=plan,
+            loops=loops,
+        )
+        self._options = options
+        self._moving = tuple(moving_obstacles)
+
+    def step(self, t: float, x: ArrayLike, *, held: bool = False) -> Command:
+        """The command for one control tick.
+
+        Parameters
+        ----------
+        t : float
+            Time (s) of this tick since the task started (:meth:`reset` is tick 0).
+            Call once a tick, at :attr:`control_rate`; a tick the caller missed (``t``
+            ahead by more than half a period) moves the reference on as well.
+        x : array_like, shape (8,)
+            Measured state.
+        held : bool
+            An external force known to act on the robot (a hand holding it): balancing
+            mode does not hand back to a policy while it acts.
+
+        Returns
+        -------
+        Command
+            Torque to hold until the next tick, and whether the task has ended.
+
+        Raises
+        ------
+        ConfigError
+            Before :meth:`reset`.
+        """
+        if self._task is None:
+            raise ConfigError("HybridController.step before reset(): start a task first")
+        return self._task.tick(float(t), np.asarray(x, dtype=float), held)
+
+    def log(self) -> ExecutionLog:
+        """What the task has kept so far besides the samples: switch events, goals
+        reached, tree times, repairs, captures, its status."""
+        if self._task is None:
+            raise ConfigError("no task: call reset() first")
+        return self._task.log(tuple(self.tree_seconds))
+
+    @property
+    def status(self) -> TaskStatus:
+        """The task's status (:attr:`TaskStatus.RUNNING` until it ends)."""
+        if self._task is None:
+            raise ConfigError("no task: call reset() first")
+        return self._task.status
+
+    def run(
+        self,
+        x0: ArrayLike,
+        goals: Sequence[ArrayLike],
+        *,
+        loops: int = 1,
+        disturbances: Sequence[Disturbance] = (),
+        options: ExecutionOptions | None = None,
+        moving_obstacles: Sequence[MovingObstacle] = (),
+        plant: Plant | None = None,
+    ) -> Episode:
+        """Execute a task in simulation: :meth:`reset`, then :meth:`step` every tick on
+        ``plant`` (:func:`gracenav.execution.drive`) until the task ends.
+
+        Parameters
+        ----------
+        x0 : array_like, shape (8,)
+            Initial plant state (the controller is given the plant's measurement of it).
+        goals, loops, options, moving_obstacles
+            As :meth:`reset`.
+        disturbances : sequence of Push, BodyForce, StateJump, Drag
+            In episode time (the plant must take them: :class:`gracenav.sim.DisturbablePlant`).
+        plant : Plant, optional
+            Default: ``options.plant`` with the palette's parameters and
+            ``options.simulation``'s substeps and noise.
+
+        Raises
+        ------
+        PlanningError
+            A goal is impossible, or the first goal is unreachable from the start.
+        """
+        options = options if options is not None else ExecutionOptions()
+        if plant is None:
+            sim = options.simulation
+            plant = make_plant(
+                options.plant,
+                self.palette.params,
+                substeps=sim.substeps,
+                position_noise_std=sim.position_noise_std,
+                velocity_noise_std=sim.velocity_noise_std,
+                seed=sim.seed,
+            )
+        plant.reset(np.asarray(x0, dtype=float))
+        self.reset(
+            plant.measure(),
+            goals,
+            loops=loops,
+            options=options,
+            moving_obstacles=moving_obstacles,
+        )
+        assert self._task is not None
+        trace = drive(
+            self,
+            plant,
+            dt=self.dt,
+            max_ticks=self._task.max_ticks + 1,
+            disturbances=disturbances,
+        )
+        log = self.log()
+        return Episode(
+            time=trace.time,
+            states=trace.states,
+            inputs=trace.inputs,
+            policy=trace.policy,
+            reference=trace.reference,
+            events=log.events,
+            status=log.status,
+            goals_reached=log.goals_reached,
+            tree_seconds=log.tree_seconds,
+            radius=trace.radius,
+            replans=log.replans,
+            blocked_time=log.blocked_time,
+            moving_obstacles=tuple(moving_obstacles),
+            captures=log.captures,
+        )

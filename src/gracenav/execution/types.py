@@ -1,0 +1,186 @@
+"""What the hybrid controller says and is told: task statuses, switch events, its
+options and the command it returns every tick."""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from gracenav.errors import ConfigError
+from gracenav.replanning import ObstacleSensing
+from gracenav.sim.plant import PLANT_KINDS, PlantKind
+from gracenav.simulate import SimulationOptions
+
+__all__ = [
+    "CAPTURE",
+    "TERMINAL",
+    "Command",
+    "EventReason",
+    "ExecutionOptions",
+    "SwitchEvent",
+    "TaskStatus",
+]
+
+FloatArray = NDArray[np.float64]
+
+#: Policy index of the terminal regulator in :attr:`Episode.policy` and
+#: :class:`SwitchEvent` (it is not a library row; −1 is balancing mode).
+TERMINAL = -2
+#: Policy index of a placed catch or shift (:mod:`gracenav.capture`).
+CAPTURE = -4
+
+
+class EventReason(enum.Enum):
+    """Why the hybrid controller started a policy."""
+
+    START = "start"
+    GRACEFUL = "graceful"
+    NEW_GOAL = "new_goal"
+    HOLD_GOAL = "hold_goal"
+    DOMAIN_EXIT = "domain_exit"
+    NOT_IN_GOAL = "not_in_goal"
+    BALANCING = "balancing"
+    RECOVERED = "recovered"
+    TERMINAL = "terminal"
+    """The goal is off the lattice: a capture regulator at the goal takes over from a
+    rest trim whose G lies in its S (the reference steps to the goal)."""
+    OBSTACLE = "obstacle"
+    """A known moving obstacle blocked the running policy: switched away mid-policy."""
+    BLOCKED = "blocked"
+    """No unblocked way to the goal: an unblocked rest trim holds the robot."""
+    RESUMED = "resumed"
+    """The way cleared while holding: the task goes on."""
+    CAPTURE = "capture"
+    """No library policy's S contains the state: a catch placed at the state (and a
+    shift) bring it onto a rest trim (:mod:`gracenav.capture`)."""
+
+    @property
+    def graceful(self) -> bool:
+        """Whether a switch for this reason keeps the motion graceful."""
+        return self in (EventReason.GRACEFUL, EventReason.NEW_GOAL, EventReason.HOLD_GOAL)
+
+
+class TaskStatus(enum.Enum):
+    """How a task ended (:attr:`RUNNING` while it runs)."""
+
+    RUNNING = "running"
+    """The task has not ended (:attr:`Command.status` before ``done``)."""
+    GOAL_REACHED = "goal_reached"
+    LOOPS_COMPLETED = "loops_completed"
+    NO_POLICY = "no_policy"
+    TIMEOUT = "timeout"
+    FELL = "fell"
+    """The lean exceeded the fall limit (``SimulationOptions.fall_lean``)."""
+    #: Consecutive policies ended without advancing time (e.g. every policy whose S
+    #: contains the state leaves its D' at once): the task stops instead of looping.
+    NO_PROGRESS = "no_progress"
+    BLOCKED = "blocked"
+    """Time ran out while moving obstacles blocked every way to the goal."""
+
+
+@dataclass(frozen=True)
+class SwitchEvent:
+    """One entry of the hybrid controller's event log.
+
+    Attributes
+    ----------
+    time : float
+        Time of the switch (s).
+    from_policy, to_policy : int
+        Library rows (−1: none, i.e. the task start or balancing mode).
+    reason : EventReason
+    tick : int
+        Sample index in the episode's arrays.
+    """
+
+    time: float
+    from_policy: int
+    to_policy: int
+    reason: EventReason
+    tick: int
+
+
+@dataclass(frozen=True)
+class ExecutionOptions:
+    """Options of :class:`HybridController` runs.
+
+    Parameters
+    ----------
+    plant : {"model3d", "mujoco"}
+        Simulated plant of :meth:`HybridController.run` when it is given none.
+    max_time : float
+        Give up after this simulated time (s), even in the middle of a policy: a task
+        never runs past it by more than one control tick.
+    goal_tolerance : float
+        A point-to-point task ends when, after the goal policy, the ball is within
+        this distance (m) of the goal and slower than this speed (m/s); until then the
+        goal rest trim is held (trims may last any time).
+    balance_time : float
+        Longest time (s) spent in balancing mode waiting for the state to enter some
+        policy's start domain before the task stops.
+    balance_chunk : float
+        How often (s) balancing mode checks the start domains.
+    resume_from_balancing : bool
+        Resume the task from balancing mode once a start domain contains the state (a
+        gracenav extension: the paper assumes 100 % coverage and stops the task).
+    capture : bool
+        When no library policy's start domain contains the state, place a verified
+        catch at it (:mod:`gracenav.capture`) before falling back to balancing mode,
+        and start with one when none contains the start state.
+    sensing : ObstacleSensing
+        Range, period and margin of the moving-obstacle sensing (used only when a run
+        has moving obstacles; :mod:`gracenav.replanning`).
+    simulation : SimulationOptions
+        Integration substeps and sensor noise of the simulated plant, and the fall
+        limit (a lean beyond it ends the task with :attr:`TaskStatus.FELL`).
+    """
+
+    plant: PlantKind = "model3d"
+    max_time: float = 120.0
+    goal_tolerance: float = 0.05
+    balance_time: float = 5.0
+    balance_chunk: float = 0.125
+    resume_from_balancing: bool = True
+    capture: bool = True
+    simulation: SimulationOptions = field(default_factory=SimulationOptions)
+    sensing: ObstacleSensing = field(default_factory=ObstacleSensing)
+
+    def __post_init__(self) -> None:
+        if self.plant not in PLANT_KINDS:
+            raise ConfigError(f"plant must be 'model3d' or 'mujoco', got {self.plant!r}")
+        if not self.max_time > 0:
+            raise ConfigError(f"max_time must be positive, got {self.max_time!r}")
+        if not self.goal_tolerance > 0:
+            raise ConfigError(f"goal_tolerance must be positive, got {self.goal_tolerance!r}")
+
+
+@dataclass(frozen=True, slots=True)
+class Command:
+    """What :meth:`HybridController.step` returns for one control tick.
+
+    Attributes
+    ----------
+    torque : ndarray, shape (2,)
+        Generalised torques (N m) on θ_x and θ_y, as :class:`gracenav.model.Ballbot3D`
+        takes them, saturated at the controller's torque limit; hold them until the
+        next tick.
+    done : bool
+        The task has ended (:attr:`status`); later commands keep the robot balancing
+        where it ended (zero torque after a fall).
+    status : TaskStatus
+        :attr:`TaskStatus.RUNNING` until ``done``.
+    policy : int
+        Library row running (:data:`TERMINAL`, :data:`CAPTURE`, −1 balancing mode or a
+        hold).
+    reference : ndarray, shape (6,)
+        Reference x, y, ẋ, ẏ, ẍ, ÿ (m, m/s, m/s²) of this tick, world frame.
+    """
+
+    torque: FloatArray
+    done: bool
+    status: TaskStatus
+    policy: int
+    reference: FloatArray
