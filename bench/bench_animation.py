@@ -30,19 +30,20 @@ from typing import Any
 
 import numpy as np
 
-from gracenav.plotting.navigation import _plt, animate_episode, draw_map, outer_domain_outline
+from gracenav.plotting._figure import agg_figure
+from gracenav.plotting.navigation import animate_episode, draw_map, outer_domain_outline
 from gracenav.scenarios import load_scenario, run_scenario
 
 
 def animate_full_redraw(result: Any, run: int, path: str | Path, *, fps: int = 10) -> Path:
     """The GIF drawn in full for every frame (the former ``animate_episode``)."""
-    plt = _plt()
     from matplotlib.animation import FuncAnimation, PillowWriter
 
     ep = result.episodes[run]
     p = ep.position_state
     lib = result.library
-    fig, ax = plt.subplots(figsize=(5, 5), constrained_layout=True)
+    fig = agg_figure(figsize=(5, 5), constrained_layout=True)
+    ax = fig.subplots()
     draw_map(ax, result.world_map)
     for g in result.scenario.goals:
         ax.plot(g[0], g[1], "*", color="green", ms=14, mec="k")
@@ -75,7 +76,6 @@ def animate_full_redraw(result: Any, run: int, path: str | Path, *, fps: int = 1
     anim = FuncAnimation(fig, update, frames=frames, blit=False)
     out = Path(path)
     anim.save(str(out), writer=PillowWriter(fps=fps))
-    plt.close(fig)
     return out
 
 

@@ -7,12 +7,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from gracenav.execution import HybridController
-from gracenav.graph import build_graph
-from gracenav.library import build_library
-from gracenav.palette import load_palette
-from gracenav.simulate import state_from_position
-from gracenav.world import load_map
+from gracenav import (
+    HybridController,
+    build_graph,
+    build_library,
+    load_map,
+    load_palette,
+    state_from_position,
+)
 
 
 def main() -> None:

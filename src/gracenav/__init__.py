@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import importlib
 import os
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 # Threaded BLAS makes the many small LAPACK calls of this package ~50x slower
 # on small machines; respect a user's explicit choice.
@@ -33,6 +33,33 @@ from gracenav.params import BallbotParams
 
 __version__ = "0.1.0"
 
+if TYPE_CHECKING:
+    from gracenav.control import design_gains
+    from gracenav.execution import Episode, ExecutionOptions, HybridController, TaskStatus
+    from gracenav.graph import PreparesGraph, build_graph
+    from gracenav.library import PolicyLibrary, build_library
+    from gracenav.model import Ballbot3D, PlanarBallbot
+    from gracenav.palette import Palette, load_palette
+    from gracenav.planning import LazyPolicyTree, PolicyPath, PolicyTree, plan_path, plan_tree
+    from gracenav.policies import MotionPolicy
+    from gracenav.primitives import primitive_set
+    from gracenav.scenarios import load_scenario, run_scenario
+    from gracenav.shape_planner import plan_shape_trajectory
+    from gracenav.simulate import (
+        BodyForce,
+        Drag,
+        Push,
+        StateJump,
+        position_state,
+        run_policy,
+        simulate,
+        simulate_batch,
+        state_from_position,
+    )
+    from gracenav.world import MovingObstacle, WorldMap, load_map
+
+# Imported on first use (see __getattr__); the block above gives type checkers the same
+# names with their real types.
 _LAZY = {
     "Ballbot3D": "gracenav.model",
     "PlanarBallbot": "gracenav.model",
@@ -40,6 +67,12 @@ _LAZY = {
     "simulate": "gracenav.simulate",
     "simulate_batch": "gracenav.simulate",
     "run_policy": "gracenav.simulate",
+    "state_from_position": "gracenav.simulate",
+    "position_state": "gracenav.simulate",
+    "Push": "gracenav.simulate",
+    "BodyForce": "gracenav.simulate",
+    "StateJump": "gracenav.simulate",
+    "Drag": "gracenav.simulate",
     "primitive_set": "gracenav.primitives",
     "plan_shape_trajectory": "gracenav.shape_planner",
     "MotionPolicy": "gracenav.policies",
@@ -58,21 +91,57 @@ _LAZY = {
     "plan_tree": "gracenav.planning",
     "plan_path": "gracenav.planning",
     "HybridController": "gracenav.execution",
+    "ExecutionOptions": "gracenav.execution",
+    "TaskStatus": "gracenav.execution",
     "Episode": "gracenav.execution",
     "load_scenario": "gracenav.scenarios",
     "run_scenario": "gracenav.scenarios",
 }
 
 __all__ = [
+    "Ballbot3D",
     "BallbotParams",
+    "BodyForce",
     "CacheError",
     "ConfigError",
+    "Drag",
+    "Episode",
+    "ExecutionOptions",
     "GracenavError",
+    "HybridController",
+    "LazyPolicyTree",
     "MapError",
+    "MotionPolicy",
+    "MovingObstacle",
+    "Palette",
+    "PlanarBallbot",
     "PlanningError",
+    "PolicyLibrary",
+    "PolicyPath",
+    "PolicyTree",
+    "PreparesGraph",
+    "Push",
+    "StateJump",
+    "TaskStatus",
     "VerificationError",
+    "WorldMap",
     "__version__",
-    *sorted(_LAZY),
+    "build_graph",
+    "build_library",
+    "design_gains",
+    "load_map",
+    "load_palette",
+    "load_scenario",
+    "plan_path",
+    "plan_shape_trajectory",
+    "plan_tree",
+    "position_state",
+    "primitive_set",
+    "run_policy",
+    "run_scenario",
+    "simulate",
+    "simulate_batch",
+    "state_from_position",
 ]
 
 

@@ -164,15 +164,13 @@ def plot_results(
     rows: list[dict[str, Any]], summary: dict[str, Any], directory: Path
 ) -> list[Path]:
     """Write success_vs_impulse.png (if pushed), time_to_goal.png and lean.png."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from gracenav.plotting._figure import agg_figure
 
     written = []
     planners = list(summary["planners"])
     if any("impulse_bins" in e for e in summary["planners"].values()):
-        fig, ax = plt.subplots(figsize=(5, 3.5))
+        fig = agg_figure(figsize=(5, 3.5))
+        ax = fig.subplots()
         for planner in planners:
             bins = [b for b in summary["planners"][planner].get("impulse_bins", []) if b["n"]]
             x = [(b["low_ns"] + b["high_ns"]) / 2 for b in bins]
@@ -188,13 +186,13 @@ def plot_results(
         ax.legend()
         fig.tight_layout()
         fig.savefig(directory / "success_vs_impulse.png", dpi=120)
-        plt.close(fig)
         written.append(directory / "success_vs_impulse.png")
     for key, name, label in (
         ("time_s", "time_to_goal.png", "time to goal (s)"),
         ("max_lean_deg", "lean.png", "max lean (°)"),
     ):
-        fig, ax = plt.subplots(figsize=(5, 3.5))
+        fig = agg_figure(figsize=(5, 3.5))
+        ax = fig.subplots()
         for planner in planners:
             vals = [
                 r[key]
@@ -210,6 +208,5 @@ def plot_results(
         ax.legend()
         fig.tight_layout()
         fig.savefig(directory / name, dpi=120)
-        plt.close(fig)
         written.append(directory / name)
     return written

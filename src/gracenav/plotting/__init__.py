@@ -1,1 +1,2 @@
-"""Figures. Every function imports matplotlib lazily and draws with the Agg backend."""
+"""Figures. Every function imports matplotlib lazily and draws on its own ``Figure`` with
+an Agg canvas: pyplot is not used and the matplotlib backend is never switched."""

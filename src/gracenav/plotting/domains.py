@@ -33,12 +33,10 @@ def plot_domain(policy: MotionPolicy, path: str | Path, *, samples: int = 60) ->
     -------
     Path
     """
-    import matplotlib
+    from gracenav.plotting._figure import agg_figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(5.5, 5.5), constrained_layout=True)
+    fig = agg_figure(figsize=(5.5, 5.5), constrained_layout=True)
+    ax = fig.subplots()
     for t in np.linspace(0.0, policy.duration, samples):
         d = policy.outer_domain(float(t))
         pts = _ellipse_xy(d.xy_projection(), d.center[:2])
@@ -62,5 +60,4 @@ def plot_domain(policy: MotionPolicy, path: str | Path, *, samples: int = 60) ->
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=120)
-    plt.close(fig)
     return out

@@ -259,19 +259,14 @@ def plot_library(
     Path
         The written file.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     from gracenav.capture import capture_for
+    from gracenav.plotting._figure import agg_figure
 
     rng = np.random.default_rng(seed)
     captures = coverage and capture_for(library).available
     ncols = (4 if captures else 3) if coverage else 1
-    fig, axes_any = plt.subplots(
-        1, ncols, figsize=(6.5 * ncols, 6.0), constrained_layout=True, squeeze=False
-    )
+    fig = agg_figure(figsize=(6.5 * ncols, 6.0), constrained_layout=True)
+    axes_any = fig.subplots(1, ncols, squeeze=False)
     axes: list[Any] = list(axes_any[0])
     ax = axes[0]
     _draw_map(ax, library)
@@ -300,5 +295,4 @@ def plot_library(
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=130)
-    plt.close(fig)
     return out

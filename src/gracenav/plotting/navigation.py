@@ -4,22 +4,18 @@ angles against time (Figs. 6, 9), and an animation of one run."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
+
+from gracenav.plotting._figure import agg_figure
+
+if TYPE_CHECKING:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
 
 __all__ = ["animate_episode", "draw_map", "outer_domain_outline", "plot_lean", "plot_paths"]
 
 _GIF_COLOURS = 64  # palette of the animation: white, black, greys and a few line colours
-
-
-def _plt() -> Any:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def draw_map(ax: Any, world_map: Any) -> None:
@@ -52,11 +48,13 @@ def _circle(ax: Any, c: Any, r: float, **kw: Any) -> None:
 def plot_paths(result: Any, path: str | Path) -> Path:
     """Reference and simulated paths of every run, the start domains of the executed
     policies, the goal(s), obstacles and domain exits. Saves a PNG."""
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(6.5, 6.5), constrained_layout=True)
+    import matplotlib
+
+    fig = agg_figure(figsize=(6.5, 6.5), constrained_layout=True)
+    ax = fig.subplots()
     draw_map(ax, result.world_map)
     lib = result.library
-    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    colors = matplotlib.rcParams["axes.prop_cycle"].by_key()["color"]
     for k, ep in enumerate(result.episodes):
         c = colors[k % len(colors)]
         for pid in dict.fromkeys(int(i) for i in ep.policy if i >= 0):
@@ -113,17 +111,14 @@ def plot_paths(result: Any, path: str | Path) -> Path:
     ax.set_title(f"{result.scenario.name}: {len(result.episodes)} run(s)")
     out = Path(path)
     fig.savefig(out, dpi=120)
-    plt.close(fig)
     return out
 
 
 def plot_lean(result: Any, path: str | Path) -> Path:
     """Body angles (degrees) against time of every run, one panel per run. Saves a PNG."""
-    plt = _plt()
     n = len(result.episodes)
-    fig, axes = plt.subplots(
-        n, 1, figsize=(7, 2.2 * n + 0.6), sharex=False, squeeze=False, constrained_layout=True
-    )
+    fig = agg_figure(figsize=(7, 2.2 * n + 0.6), constrained_layout=True)
+    axes = fig.subplots(n, 1, sharex=False, squeeze=False)
     for k, ep in enumerate(result.episodes):
         ax = axes[k, 0]
         deg = np.rad2deg(ep.lean)
@@ -139,7 +134,6 @@ def plot_lean(result: Any, path: str | Path) -> Path:
     axes[-1, 0].set_xlabel("time (s)")
     out = Path(path)
     fig.savefig(out, dpi=110)
-    plt.close(fig)
     return out
 
 
@@ -188,7 +182,7 @@ def animate_episode(result: Any, run: int, path: str | Path, *, fps: int = 10) -
     Path
         ``path``.
     """
-    plt = _plt()
+    from matplotlib.colors import to_hex
     from matplotlib.font_manager import findfont
     from PIL import Image, ImageDraw, ImageFont
 
@@ -196,7 +190,8 @@ def animate_episode(result: Any, run: int, path: str | Path, *, fps: int = 10) -
     p = ep.position_state
     lean = ep.lean
     lib = result.library
-    fig, ax = plt.subplots(figsize=(5, 5), constrained_layout=True)
+    fig = agg_figure(figsize=(5, 5), constrained_layout=True)
+    ax = fig.subplots()
     draw_map(ax, result.world_map)
     for g in result.scenario.goals:
         ax.plot(g[0], g[1], "*", color="green", ms=14, mec="k")
@@ -237,7 +232,7 @@ def animate_episode(result: Any, run: int, path: str | Path, *, fps: int = 10) -
         dom.set_data(xs, ys)
         return f"t = {ep.time[i]:6.2f} s  {name}"
 
-    canvas = fig.canvas
+    canvas = cast("FigureCanvasAgg", fig.canvas)  # agg_figure's: blitting reads its buffer
     canvas.draw()  # lays the figure out once and renders the static background
     fig.set_layout_engine("none")  # keep that layout: nothing is drawn in full again
     background = canvas.copy_from_bbox(fig.bbox)
@@ -254,7 +249,9 @@ def animate_episode(result: Any, run: int, path: str | Path, *, fps: int = 10) -
             ax.draw_artist(a)
         rgba = Image.frombuffer("RGBA", (width, height), canvas.buffer_rgba(), "raw", "RGBA", 0, 1)
         rgb = rgba.convert("RGB")
-        ImageDraw.Draw(rgb).text(title_at, text, fill=title.get_color(), font=font, anchor="ms")
+        ImageDraw.Draw(rgb).text(
+            title_at, text, fill=to_hex(title.get_color()), font=font, anchor="ms"
+        )
         return rgb
 
     samples = [render(i) for i in (frames[0], frames[len(frames) // 2], frames[-1])]
@@ -263,7 +260,6 @@ def animate_episode(result: Any, run: int, path: str | Path, *, fps: int = 10) -
         strip.paste(im, (0, k * height))
     palette = strip.quantize(_GIF_COLOURS, method=Image.Quantize.FASTOCTREE)
     images = [render(i).quantize(palette=palette, dither=Image.Dither.NONE) for i in frames]
-    plt.close(fig)
     out = Path(path)
     images[0].save(
         out,

@@ -66,15 +66,13 @@ def plot_primitives(
     Path
         The written file.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from gracenav.plotting._figure import agg_figure
 
     prims = list(primitives)
     if d is None:
         d = primitives.d if isinstance(primitives, PrimitiveSet) else 0.5
-    fig, ax = plt.subplots(figsize=(7, 7), constrained_layout=True)
+    fig = agg_figure(figsize=(7, 7), constrained_layout=True)
+    ax = fig.subplots()
     extent = np.zeros(2)
     low = np.zeros(2)
     seen: set[str] = set()
@@ -107,5 +105,4 @@ def plot_primitives(
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=120)
-    plt.close(fig)
     return out

@@ -17,7 +17,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gracenav.domains import EllipsoidalDomain
-from gracenav.plotting.navigation import _plt, draw_map
+from gracenav.plotting._figure import agg_figure
+from gracenav.plotting.navigation import draw_map
 from gracenav.simulate import Drag, Push
 
 __all__ = [
@@ -357,8 +358,8 @@ def plot_recovery(
     """
     data = recovery_data(result, run, arrow_length=arrow_length)
     ep = result.episodes[run]
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=size, constrained_layout=True)
+    fig = agg_figure(figsize=size, constrained_layout=True)
+    ax = fig.subplots()
     draw_map(ax, result.world_map)
     # Outlines: label, colour, line style, width, opacity, fill opacity, z-order.
     for outlines, label, color, ls, lw, alpha, fill, z in (
@@ -452,5 +453,4 @@ def plot_recovery(
     )
     out = Path(path)
     fig.savefig(out, dpi=dpi)
-    plt.close(fig)
     return data

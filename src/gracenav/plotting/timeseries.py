@@ -38,15 +38,13 @@ def plot_balance(
     Path
         The written file.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from gracenav.plotting._figure import agg_figure
 
     t = np.asarray(time, dtype=float)
     pos = np.asarray(position, dtype=float)
     phi = np.rad2deg(np.asarray(lean, dtype=float))
-    fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(7, 5), constrained_layout=True)
+    fig = agg_figure(figsize=(7, 5), constrained_layout=True)
+    ax1, ax2 = fig.subplots(2, 1, sharex=True)
     ax1.plot(t, pos[:, 0] * 100.0, label="x")
     ax1.plot(t, pos[:, 1] * 100.0, label="y")
     ax1.set_ylabel("ball position (cm)")
@@ -62,5 +60,4 @@ def plot_balance(
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=120)
-    plt.close(fig)
     return out
