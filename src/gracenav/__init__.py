@@ -35,7 +35,13 @@ __version__ = "0.1.0"
 
 if TYPE_CHECKING:
     from gracenav.control import design_gains
-    from gracenav.execution import Episode, ExecutionOptions, HybridController, TaskStatus
+    from gracenav.execution import (
+        Command,
+        Episode,
+        ExecutionOptions,
+        HybridController,
+        TaskStatus,
+    )
     from gracenav.graph import PreparesGraph, build_graph
     from gracenav.library import PolicyLibrary, build_library
     from gracenav.model import Ballbot3D, PlanarBallbot
@@ -45,6 +51,7 @@ if TYPE_CHECKING:
     from gracenav.primitives import primitive_set
     from gracenav.scenarios import load_scenario, run_scenario
     from gracenav.shape_planner import plan_shape_trajectory
+    from gracenav.sim import Model3DPlant, MujocoPlant, Plant
     from gracenav.simulate import (
         BodyForce,
         Drag,
@@ -94,6 +101,10 @@ _LAZY = {
     "ExecutionOptions": "gracenav.execution",
     "TaskStatus": "gracenav.execution",
     "Episode": "gracenav.execution",
+    "Command": "gracenav.execution",
+    "Plant": "gracenav.sim",
+    "Model3DPlant": "gracenav.sim",
+    "MujocoPlant": "gracenav.sim",
     "load_scenario": "gracenav.scenarios",
     "run_scenario": "gracenav.scenarios",
 }
@@ -103,6 +114,7 @@ __all__ = [
     "BallbotParams",
     "BodyForce",
     "CacheError",
+    "Command",
     "ConfigError",
     "Drag",
     "Episode",
@@ -111,11 +123,14 @@ __all__ = [
     "HybridController",
     "LazyPolicyTree",
     "MapError",
+    "Model3DPlant",
     "MotionPolicy",
     "MovingObstacle",
+    "MujocoPlant",
     "Palette",
     "PlanarBallbot",
     "PlanningError",
+    "Plant",
     "PolicyLibrary",
     "PolicyPath",
     "PolicyTree",

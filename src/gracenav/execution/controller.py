@@ -503,7 +503,7 @@ class HybridController:
             plan = self.capture_plan(x, tree)
             if plan is not None:
                 current = CAPTURE
-        if current < 0:
+        if current < 0 and plan is None:
             hits = self.library.start_domain_contains(p[None, :])
             why = (
                 "no library policy's start domain contains the start state, and no catch "
