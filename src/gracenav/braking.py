@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from gracenav.control import ControllerGains
+from gracenav.control import CONTROL_RATE, ControllerGains
 from gracenav.policies import (
     BrakingOptions,
     DomainShape,
@@ -51,7 +51,6 @@ from gracenav.policies import (
     variant_label,
     verify_placements,
 )
-from gracenav.simulate import DEFAULT_CONTROL_RATE
 
 if TYPE_CHECKING:
     from gracenav.shape_planner import ShapePlannerResult
@@ -120,7 +119,7 @@ def sampled_with_rest_tail(
     """The planned trajectory ``result`` (lasting ``duration`` s, ending at rest) sampled
     at the control ticks, followed by ``tail`` seconds of rest at its end point: a
     maneuver whose rest tail lets the tracking error settle into G."""
-    dt = 1.0 / DEFAULT_CONTROL_RATE
+    dt = 1.0 / CONTROL_RATE
     n = round(duration / dt)
     m = round(tail / dt)
     s = result.trajectory.sample(np.arange(n + 1) * dt)

@@ -60,7 +60,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from gracenav.control import ControllerGains
+from gracenav.control import CONTROL_RATE, ControllerGains
 from gracenav.domains import EllipsoidalDomain
 from gracenav.policies import (
     CatchOptions,
@@ -76,7 +76,7 @@ from gracenav.policies import (
     rotate_pairs_by,
     verify_policy,
 )
-from gracenav.simulate import DEFAULT_CONTROL_RATE, Reference
+from gracenav.simulate import Reference
 
 if TYPE_CHECKING:
     from gracenav.library import PolicyLibrary
@@ -171,7 +171,7 @@ def _lean_class(policy: MotionPolicy) -> str:
 
 
 def _rest_primitive(name: str, duration: float) -> SampledPrimitive:
-    dt = 1.0 / DEFAULT_CONTROL_RATE
+    dt = 1.0 / CONTROL_RATE
     n = round(duration / dt)
     zero = np.zeros(2)
     return SampledPrimitive(

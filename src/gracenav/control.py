@@ -38,6 +38,12 @@ from gracenav.errors import ConfigError
 from gracenav.model.planar import PlanarBallbot
 from gracenav.params import BallbotParams
 
+CONTROL_RATE = 1024.0
+"""The control rate (Hz) of every controller of the package, the rate the palette's
+policies are verified at: one tick is 1/1024 s, a step exact in binary, so tick times
+k/1024 add up without rounding. Simulations, references and the hybrid controller
+all tick at it."""
+
 __all__ = [
     "ControllerGains",
     "LQRWeights",

@@ -61,6 +61,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from gracenav.control import CONTROL_RATE
 from gracenav.errors import ConfigError
 from gracenav.params import BallbotParams
 
@@ -114,7 +115,7 @@ def _f(value: float) -> str:
 
 
 def build_mjcf(
-    params: BallbotParams, *, yaw: YawMode = "locked", timestep: float = 1.0 / 1024.0
+    params: BallbotParams, *, yaw: YawMode = "locked", timestep: float = 1.0 / CONTROL_RATE
 ) -> str:
     """Return the MJCF (MuJoCo XML) text of the ballbot.
 
@@ -335,7 +336,7 @@ class MujocoBallbot:
         params: BallbotParams | None = None,
         *,
         yaw: YawMode = "locked",
-        timestep: float = 1.0 / 1024.0,
+        timestep: float = 1.0 / CONTROL_RATE,
     ) -> None:
         mj = _require_mujoco()
         _check_options(yaw, timestep)

@@ -46,12 +46,11 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from gracenav.control import ControllerGains, design_gains
+from gracenav.control import CONTROL_RATE, ControllerGains, design_gains
 from gracenav.domains import EllipsoidalDomain, correlated_shape, sphere_points
 from gracenav.errors import ConfigError
 from gracenav.params import BallbotParams
 from gracenav.simulate import (
-    DEFAULT_CONTROL_RATE,
     Reference,
     position_state,
     simulate_batch,
@@ -189,7 +188,7 @@ class SampledPrimitive:
 
     @classmethod
     def from_primitive(
-        cls, primitive: PrimitiveLike, *, control_rate: float = DEFAULT_CONTROL_RATE
+        cls, primitive: PrimitiveLike, *, control_rate: float = CONTROL_RATE
     ) -> SampledPrimitive:
         """Sample a :class:`gracenav.primitives.MotionPrimitive` at the control ticks.
 
@@ -836,7 +835,7 @@ def push_lean_table(
 
     plant = params if params is not None else gains.params
     r = gains.params.ball_radius
-    dt = 1.0 / DEFAULT_CONTROL_RATE
+    dt = 1.0 / CONTROL_RATE
     t = np.asarray(times, dtype=float)
     ticks = np.round(t / dt).astype(int)
     ref = Reference.hold((0.0, 0.0), float(t.max(initial=0.0)) + 0.25, params=gains.params)

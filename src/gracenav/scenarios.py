@@ -54,6 +54,7 @@ import numpy as np
 
 from gracenav._io import atomic_write_text, load_document
 from gracenav._validate import Fields, require_mapping
+from gracenav.control import CONTROL_RATE
 from gracenav.errors import ConfigError
 from gracenav.library import DEFAULT_SPEED_CLEARANCE, MAX_SPEED_CLEARANCE
 from gracenav.params import BallbotParams
@@ -950,7 +951,7 @@ def _summarise(
     )
 
 
-_PUSH_JERK_WINDOW_S = 2.0 / 1024.0
+_PUSH_JERK_WINDOW_S = 2.0 / CONTROL_RATE
 """Jerk samples this close (s) to a push are left out of ``max_jerk_mps3``."""
 
 

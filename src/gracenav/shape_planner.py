@@ -57,6 +57,7 @@ from scipy.interpolate import BSpline, PPoly
 
 from gracenav._kernels import bias as _bias3
 from gracenav._kernels import mass_matrix as _mm3
+from gracenav.control import CONTROL_RATE
 from gracenav.errors import ConfigError
 from gracenav.model.planar import PlanarBallbot
 from gracenav.params import BallbotParams
@@ -640,7 +641,7 @@ class ShapePlannerOptions:
     max_iterations: int = 30
     end_tolerance: float = 1e-11
     step_tolerance: float = 1e-10
-    step: float = 1.0 / 1024.0
+    step: float = 1.0 / CONTROL_RATE
 
     def __post_init__(self) -> None:
         for name in ("knot_spacing", "end_tolerance", "step_tolerance", "step"):

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from gracenav.control import ControllerGains, design_gains
+from gracenav.control import CONTROL_RATE, ControllerGains, design_gains
 from gracenav.errors import ConfigError
 from gracenav.params import BallbotParams
 
@@ -50,7 +50,6 @@ __all__ = [
 FloatArray = NDArray[np.float64]
 Plant = Literal["model3d", "mujoco"]
 
-DEFAULT_CONTROL_RATE = 1024.0
 
 DEFAULT_FALL_LEAN = math.radians(20.0)
 """Default fall limit: |lean| (rad) in either plane beyond which a run has fallen (20°).
@@ -128,7 +127,7 @@ class Reference:
         duration: float,
         *,
         params: BallbotParams | None = None,
-        dt: float = 1.0 / DEFAULT_CONTROL_RATE,
+        dt: float = 1.0 / CONTROL_RATE,
     ) -> Reference:
         """Station keeping: stay upright at rest at ``position`` (x, y) (m) for ``duration`` (s)."""
         params = params if params is not None else BallbotParams()

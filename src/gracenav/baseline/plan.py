@@ -12,6 +12,7 @@ from numpy.typing import ArrayLike, NDArray
 from gracenav.baseline.options import DecoupledOptions, MotionLimits
 from gracenav.baseline.path import _smooth_curve, grid_path, shortcut_path
 from gracenav.baseline.timing import TimedPath, _time_curve
+from gracenav.control import CONTROL_RATE
 from gracenav.errors import PlanningError
 
 if TYPE_CHECKING:
@@ -61,7 +62,7 @@ def plan_decoupled(
     limits: MotionLimits,
     start_velocity: ArrayLike = (0.0, 0.0),
     options: DecoupledOptions | None = None,
-    dt: float = 1.0 / 1024.0,
+    dt: float = 1.0 / CONTROL_RATE,
 ) -> DecoupledPlan:
     """Plan, shortcut, smooth and time a path from ``start`` to ``goal`` (m).
 

@@ -16,6 +16,7 @@ from scipy.ndimage import uniform_filter1d
 
 from gracenav.baseline.options import MotionLimits
 from gracenav.baseline.path import _Curve, _on_curve, _sample_curve
+from gracenav.control import CONTROL_RATE
 from gracenav.errors import ConfigError
 
 __all__ = ["TimedPath", "time_parameterize"]
@@ -161,7 +162,7 @@ def time_parameterize(
     *,
     start_speed: float = 0.0,
     lateral_fraction: float = 0.6,
-    dt: float = 1.0 / 1024.0,
+    dt: float = 1.0 / CONTROL_RATE,
     step: float = 0.005,
     max_retimings: int = 12,
 ) -> TimedPath:

@@ -18,6 +18,7 @@ from typing import Literal, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from gracenav.control import CONTROL_RATE
 from gracenav.errors import ConfigError
 from gracenav.params import BallbotParams
 
@@ -36,10 +37,6 @@ FloatArray = NDArray[np.float64]
 #: The kinds of simulated plant gracenav ships (scenario ``simulation.plant``).
 PlantKind = Literal["model3d", "mujoco"]
 PLANT_KINDS: tuple[PlantKind, ...] = ("model3d", "mujoco")
-
-CONTROL_RATE = 1024.0
-"""Control rate (Hz) the palette's policies are verified at: one tick is 1/1024 s, a
-step exact in binary, so tick times k/1024 add up without rounding."""
 
 
 @runtime_checkable
