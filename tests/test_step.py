@@ -174,3 +174,88 @@ def test_a_fall_ends_the_task_with_zero_torque(fig5) -> None:  # type: ignore[no
     cmd = hc.step(0.0, fallen)
     assert cmd.done and cmd.status is TaskStatus.FELL
     np.testing.assert_array_equal(cmd.torque, 0.0)
+
+
+# -- computations longer than a tick ------------------------------------------------
+
+ROOM = Path(__file__).resolve().parent.parent / "examples" / "maps" / "room_5m_box.yaml"
+
+
+@pytest.fixture(scope="module")
+def room():  # type: ignore[no-untyped-def]
+    lib = build_library(load_palette(), load_map(ROOM), footprint_radius=0.2, max_halvings=1)
+    return lib, build_graph(lib)
+
+
+def test_modelled_latency_captures_land_later_and_still_catch(room) -> None:  # type: ignore[no-untyped-def]
+    """With planning="modelled" and a latency of 20 ms, a push only a catch recovers
+    from is caught by a catch planned for the state 50 ms ahead, which starts when
+    its start domain holds the state then; the task reaches the goal without
+    balancing mode, as with the capture computed at once."""
+    from gracenav.execution import EventReason
+
+    lib, graph = room
+    x0 = state_from_position([1.0, 1.0, 0.0, 0.0], lib.palette.params.ball_radius)
+    push = [Push(3.0, (22.0, 5.0))]
+    runs = {}
+    for mode in ("instant", "modelled"):
+        opts = ExecutionOptions(max_time=60.0, planning=mode, planning_latency=0.02)
+        ep = HybridController(lib, graph).run(
+            x0, [(4.0, 4.0, 0.0, 0.0)], disturbances=push, options=opts
+        )
+        assert ep.status is TaskStatus.GOAL_REACHED, mode
+        reasons = [e.reason for e in ep.events]
+        assert EventReason.CAPTURE in reasons and EventReason.BALANCING not in reasons, mode
+        runs[mode] = ep
+    inst = [e for e in runs["instant"].events if e.reason is EventReason.CAPTURE][0]
+    late = [e for e in runs["modelled"].events if e.reason is EventReason.CAPTURE][0]
+    # The catch starts the lead (51 ticks) after the domain exit the instant one starts at.
+    assert late.tick - inst.tick == 51
+
+
+def test_threaded_planning_never_waits_in_step(room, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """A capture computed on the worker thread while step keeps returning commands:
+    the worker is held until 200 ticks after the push; no step waits for it."""
+    import threading
+    import time
+
+    from gracenav.execution import EventReason
+
+    lib, graph = room
+    hc = HybridController(lib, graph)
+    release = threading.Event()
+    plan = hc.capture_plan
+
+    def held_plan(x, tree):  # type: ignore[no-untyped-def]
+        assert release.wait(30.0)
+        return plan(x, tree)
+
+    monkeypatch.setattr(hc, "capture_plan", held_plan)
+    plant = Model3DPlant()
+    dt = 1.0 / hc.control_rate
+    plant.reset(state_from_position([1.0, 1.0, 0.0, 0.0], hc.radius))
+    hc.reset(plant.measure(), [(4.0, 4.0, 0.0, 0.0)], options=ExecutionOptions(planning="threaded"))
+    push_tick = 3 * 1024
+    slowest = 0.0
+    try:
+        for n in range(120 * 1024):
+            if n == push_tick:
+                plant.push(np.array([22.0, 5.0]))
+            if n == push_tick + 200:
+                release.set()
+            t0 = time.perf_counter()
+            cmd = hc.step(n * dt, plant.measure())
+            if push_tick <= n < push_tick + 200:
+                slowest = max(slowest, time.perf_counter() - t0)
+            if cmd.done:
+                break
+            plant.advance(cmd.torque, dt)
+    finally:
+        release.set()
+        hc.close()
+    assert slowest < 0.05  # the worker was held the whole time: nothing waited for it
+    assert cmd.done and cmd.status is TaskStatus.GOAL_REACHED
+    log = hc.log()
+    assert any(e.reason is EventReason.CAPTURE for e in log.events) or any(
+        e.reason is EventReason.BALANCING for e in log.events
+    )

@@ -56,6 +56,7 @@ __all__ = [
     "HOLD_MARGIN",
     "SWEEP_STEP",
     "KnownObstacle",
+    "Look",
     "ObstacleSensing",
     "ReplanEvent",
     "SweptDomains",
@@ -644,6 +645,32 @@ def _whole(tree: PolicyTree | LazyPolicyTree) -> PolicyTree:
     return tree
 
 
+@dataclass(frozen=True)
+class Look:
+    """One look at the moving obstacles (:meth:`ObstacleTracker.look`).
+
+    Attributes
+    ----------
+    time : float
+        When it looked (s).
+    known : tuple of KnownObstacle
+    tree : PolicyTree
+        The tree repaired for what it saw.
+    blocked : ndarray of bool, shape (len(library),)
+    latency : float
+        Wall time of the repair (s).
+    changed : int
+        Policies whose cost-to-go changed.
+    """
+
+    time: float
+    known: tuple[KnownObstacle, ...]
+    tree: PolicyTree
+    blocked: BoolArray
+    latency: float
+    changed: int
+
+
 class ObstacleTracker:
     """The hybrid controller's view of the moving obstacles during one run: what it
     knows, which policies that blocks, the repaired tree, and the replan log.
@@ -697,7 +724,21 @@ class ObstacleTracker:
 
     def update(self, t: float, xy: FloatArray, tree: PolicyTree | LazyPolicyTree) -> PolicyTree:
         """Look at time ``t`` from ``xy``, block and free policies, repair ``tree``
-        (the tree without the previously blocked policies) and log the replan.
+        (the tree without the previously blocked policies) and log the replan:
+        :meth:`look` and :meth:`apply` at once.
+
+        Raises
+        ------
+        ConfigError
+            If ``tree`` is a :class:`LazyPolicyTree`: the repair needs a whole tree.
+        """
+        self.next_time = t + self.sensing.period
+        return self.apply(self.look(t, xy, tree))
+
+    def look(self, t: float, xy: FloatArray, tree: PolicyTree | LazyPolicyTree) -> Look:
+        """What a look at time ``t`` from ``xy`` sees and the tree repaired for it,
+        without changing the tracker (a worker thread may compute it while the
+        controller runs; :meth:`apply` adopts it).
 
         Raises
         ------
@@ -706,9 +747,6 @@ class ObstacleTracker:
         """
         tree = _whole(tree)
         known = sense(self.obstacles, xy, t, self.sensing)
-        self.next_time = t + self.sensing.period
-        before = {k.index for k in self.known}
-        self.known = known
         new, blocked, latency, changed = timed_repair(
             tree,
             self.graph,
@@ -719,8 +757,15 @@ class ObstacleTracker:
             footprint=self.footprint,
             sensing=self.sensing,
         )
-        if not np.array_equal(blocked, self.blocked):
-            now = {k.index for k in known}
+        return Look(t, known, new, blocked, latency, changed)
+
+    def apply(self, look: Look) -> PolicyTree:
+        """Adopt a :meth:`look`: the known obstacles and blocked policies, the replan
+        log; returns its repaired tree."""
+        before = {k.index for k in self.known}
+        self.known = look.known
+        if not np.array_equal(look.blocked, self.blocked):
+            now = {k.index for k in look.known}
             reason = (
                 "obstacle_sensed"
                 if now - before
@@ -728,9 +773,11 @@ class ObstacleTracker:
                 if before - now
                 else "obstacle_moved"
             )
-            self.replans.append(ReplanEvent(t, reason, latency, int(blocked.sum()), changed))
-        self.blocked = blocked
-        return new
+            self.replans.append(
+                ReplanEvent(look.time, reason, look.latency, int(look.blocked.sum()), look.changed)
+            )
+        self.blocked = look.blocked
+        return look.tree
 
     def retarget(self, tree: PolicyTree | LazyPolicyTree) -> PolicyTree:
         """``tree`` (a tree of the whole library, toward a new goal) without the

@@ -8,6 +8,7 @@ from gracenav.execution.types import (
     Command,
     EventReason,
     ExecutionOptions,
+    PlanningMode,
     SwitchEvent,
     TaskStatus,
 )
@@ -21,6 +22,7 @@ __all__ = [
     "ExecutionLog",
     "ExecutionOptions",
     "HybridController",
+    "PlanningMode",
     "SwitchEvent",
     "TaskStatus",
     "TerminalPolicy",

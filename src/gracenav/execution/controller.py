@@ -22,7 +22,9 @@ simulated at once.
 from __future__ import annotations
 
 import time as _time
+import weakref
 from collections.abc import Sequence
+from concurrent.futures import Executor, ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -145,6 +147,28 @@ class HybridController:
         self.radius = float(self.gains.params.ball_radius)
         self.law = TrackingLaw(self.gains)
         self._task: Supervisor | None = None
+        self._executor: ThreadPoolExecutor | None = None
+
+    @property
+    def whole_trees(self) -> bool:
+        """Whether trees are whole (:func:`plan_tree`) rather than lazy: the graph keeps
+        its reversed graph (:meth:`PreparesGraph.search_form`)."""
+        return self._adjacency is not self.graph
+
+    def planning_executor(self) -> Executor:
+        """The worker thread of ``planning="threaded"`` (:class:`ExecutionOptions`),
+        started on first use and stopped by :meth:`close` (or when the controller is
+        collected)."""
+        if self._executor is None:
+            self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="gracenav-plan")
+            weakref.finalize(self, self._executor.shutdown, wait=False)
+        return self._executor
+
+    def close(self) -> None:
+        """Stop the planning thread, if one was started (waits for a running plan)."""
+        if self._executor is not None:
+            self._executor.shutdown(wait=True)
+            self._executor = None
 
     @property
     def control_rate(self) -> float:

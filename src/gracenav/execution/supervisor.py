@@ -12,8 +12,11 @@ hold while moving obstacles block the way, balancing mode, or the end of the tas
 from __future__ import annotations
 
 import math
+import time as _time
+from collections.abc import Callable
+from concurrent.futures import Executor, Future
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,6 +51,16 @@ MAX_STALLED_SEGMENTS = 8
 #: Clearance (m) beyond the footprint that balancing mode keeps on its way to the
 #: point it holds (see HybridController.recovery_point).
 BALANCING_MARGIN = 0.05
+
+#: A capture that lands with a start domain that no longer holds the state is asked
+#: again from the state then, at most this many times, before balancing mode.
+CAPTURE_TRIES = 3
+#: Longest wait (s) for a capture computed in the background before balancing mode.
+CAPTURE_WAIT = 1.0
+#: A capture computed in the background is planned from the state predicted this far
+#: ahead (s) and starts then (later if it lands later): longer than a capture plan
+#: takes on this machine (2-28 ms measured).
+CAPTURE_LEAD = 0.05
 
 _NO_CENTER = np.zeros((0,))
 _NO_SHAPE = np.zeros((0, 0))
@@ -91,6 +104,44 @@ class TrackingLaw:
         return out, float(val)
 
 
+class Job:
+    """A computation longer than a tick (:attr:`ExecutionOptions.planning`).
+
+    ``"threaded"``: submitted to ``executor``, ready when done. ``"modelled"``: run at
+    once, ready ``latency`` (s; None: its wall time) after tick ``tick``.
+    """
+
+    def __init__(
+        self,
+        fn: Callable[[], Any],
+        *,
+        executor: Executor | None,
+        tick: int,
+        dt: float,
+        latency: float | None,
+    ) -> None:
+        self.future: Future[Any] | None = None
+        self.value: Any = None
+        self.due = tick
+        if executor is not None:
+            self.future = executor.submit(fn)
+        else:
+            t0 = _time.perf_counter()
+            self.value = fn()
+            lat = _time.perf_counter() - t0 if latency is None else latency
+            self.due = tick + max(1, math.ceil(lat / dt - 1e-9))
+
+    def ready(self, tick: int) -> bool:
+        """Whether its result may be used at tick ``tick``."""
+        if self.future is not None:
+            return self.future.done()
+        return tick >= self.due
+
+    def result(self) -> Any:
+        """Its result (waits for a thread that has not finished; raises its error)."""
+        return self.future.result() if self.future is not None else self.value
+
+
 @dataclass
 class _Segment:
     """What runs until the next decision: reference rows 0..n (n + 1 ticks)."""
@@ -106,6 +157,7 @@ class _Segment:
     split: bool = False
     is_goal: bool = False
     balance: bool = False
+    waiting: bool = False
     k: int = 0
 
 
@@ -171,6 +223,29 @@ class Supervisor:
         self.last_t: float | None = None
         self.final: Command | None = None
         self.hold_final: FloatArray | None = None
+        self.background = options.planning != "instant"
+        self.executor = hc.planning_executor() if options.planning == "threaded" else None
+        self.look_job: Job | None = None
+        self.capture_job: Job | None = None
+        self.capture_tries = 0
+        self.capture_at = 0
+        self.tree_job: Job | None = None
+        if self.background and options.capture:
+            # Load the compiled prediction once here, not in the tick that first needs it.
+            from gracenav.simulate import Reference, simulate
+
+            seg = self._coast(state_from_position(np.zeros(4), self.r), 2)
+            ref = Reference(seg.ref_states, seg.ref_inputs, self.dt)
+            simulate(seg.ref_states[0], ref, hc.gains, params=hc.params)
+
+    def _job(self, fn: Callable[[], Any]) -> Job:
+        return Job(
+            fn,
+            executor=self.executor,
+            tick=self.ticks,
+            dt=self.dt,
+            latency=self.options.planning_latency,
+        )
 
     # -- the tick ------------------------------------------------------------------
     def tick(self, t: float, x: FloatArray, held: bool) -> Command:
@@ -190,6 +265,8 @@ class Supervisor:
                 self._begin()
                 continue
             k = seg.k
+            if self.background and self._land(seg, k):
+                continue
             lean_ok = abs(x[2]) <= self.fall_lean and abs(x[3]) <= self.fall_lean
             if not lean_ok:  # also a state that is no longer finite
                 self.segment = None
@@ -207,6 +284,8 @@ class Supervisor:
                 self.segment = None
                 if seg.balance:
                     self._end_chunk(seg, k)
+                elif seg.waiting:
+                    self._wait_more(seg)
                 else:
                     self._end_segment(seg, k, exited)
                 continue
@@ -287,7 +366,11 @@ class Supervisor:
         if is_goal and self.k_goal + 1 < len(self.sequence):
             # Regenerate the tree for the next goal while the last policy to the
             # current goal runs (paper Sec. V-C).
-            hc.tree(self.sequence[self.k_goal + 1])
+            nxt_goal = self.sequence[self.k_goal + 1]
+            if self.background and hc.whole_trees and self.tree_job is None:
+                self.tree_job = self._job(lambda: hc.tree(nxt_goal))
+            elif not self.background or not hc.whole_trees:
+                hc.tree(nxt_goal)
         remaining = prim.num_ticks - self.offset
         n_seg = min(remaining, self.max_ticks - self.ticks)
         truncated = n_seg < remaining
@@ -313,8 +396,9 @@ class Supervisor:
         f = self.current if frm is None else frm
         self.events.append(SwitchEvent(self.t, f, to, reason, self.ticks))
 
-    def _end_segment(self, seg: _Segment, last: int, exited: bool) -> None:
-        """The switching rules at the end of a policy segment of ``last`` ticks."""
+    def _end_segment(self, seg: _Segment, last: int, exited: bool, looked: bool = False) -> None:
+        """The switching rules at the end of a policy segment of ``last`` ticks
+        (``looked``: it ended because a look at the moving obstacles landed)."""
         hc, options, dyn = self.hc, self.options, self.dyn
         t, x = self.t, self.x
         p = position_state(x, self.r)
@@ -331,8 +415,8 @@ class Supervisor:
         current = self.current
         term = self.terminals[self.k_goal]
         if dyn is not None:
-            if dyn.due(t):
-                self.tree = dyn.update(t, p[:2], self.tree)
+            if dyn.due(t) and not looked:
+                self._look(t, p)
             if self.holding:
                 free_row = hc.best_policy(p, self.tree)
                 if free_row >= 0:  # the way is free again
@@ -386,6 +470,10 @@ class Supervisor:
                 self._event(wait_row, EventReason.BLOCKED)
                 self.current, self.holding = wait_row, True
                 return
+        if row == -1 and options.capture and (dyn is None or not dyn.known) and self.background:
+            self.capture_tries = 0
+            self._ask_capture(x)
+            return
         if row == -1 and options.capture and (dyn is None or not dyn.known):
             plan = hc.capture_plan(x, self.tree)
             if plan is not None:
@@ -395,19 +483,121 @@ class Supervisor:
                 self.current, self.offset = CAPTURE, 0
                 return
         if row == -1:
-            # Balancing mode: station keeping at the nearest rest-trim start of the
-            # library from which the goal is reachable, checking every chunk whether
-            # some policy's S now contains the state; the task stops if none does
-            # within ``balance_time``.
-            self._event(-1, EventReason.BALANCING)
-            self.hold_xy = hc.recovery_point(p, self.tree, dyn)
-            self.waited = 0.0
-            self.recovered = -1
-            self.limit = options.balance_time
-            self.balancing = True
+            self._balance(p)
             return
         self._event(row, reason)
         self.current = row
+
+    def _balance(self, p: FloatArray) -> None:
+        """Balancing mode: station keeping at the nearest rest-trim start of the
+        library from which the goal is reachable, checking every chunk whether some
+        policy's S now contains the state; the task stops if none does within
+        ``balance_time``."""
+        self._event(-1, EventReason.BALANCING)
+        self.hold_xy = self.hc.recovery_point(p, self.tree, self.dyn)
+        self.waited = 0.0
+        self.recovered = -1
+        self.limit = self.options.balance_time
+        self.balancing = True
+
+    # -- computations in the background ---------------------------------------------
+    def _look(self, t: float, p: FloatArray) -> None:
+        """Look at the moving obstacles now (instant) or ask for a look."""
+        dyn = self.dyn
+        assert dyn is not None
+        if not self.background:
+            self.tree = dyn.update(t, p[:2], self.tree)
+            return
+        dyn.next_time = t + dyn.sensing.period
+        if self.look_job is None:
+            xy, tree = p[:2].copy(), self.tree
+            self.look_job = self._job(lambda: dyn.look(t, xy, tree))
+
+    def _coast(self, x: FloatArray, n: int) -> _Segment:
+        """A waiting segment of ``n`` ticks: upright at the measured velocity from the
+        measured position (the reference the robot follows while a capture is
+        computed), with the friction the plan expects at that ball rate."""
+        from gracenav import _kernels
+
+        p = position_state(x, self.r)
+        tau = np.arange(n + 1)[:, None] * self.dt
+        pos = np.zeros((n + 1, 6))
+        pos[:, :2] = p[:2] + tau * p[2:]
+        pos[:, 2:4] = p[2:]
+        states = state_from_position(pos[:, :4], self.r)
+        fr = self.law.friction
+        ff = np.array([_kernels.friction(fr, float(w)) for w in states[0, 4:6]])
+        return _Segment(
+            policy=self.current,
+            ref_states=states,
+            ref_inputs=np.tile(ff, (n + 1, 1)),
+            ref_pos=pos,
+            centers=None,
+            shapes=None,
+            n=n,
+            waiting=True,
+        )
+
+    def _ask_capture(self, x: FloatArray) -> None:
+        """Ask for a capture of the state predicted :data:`CAPTURE_LEAD` ahead while the
+        robot coasts (:meth:`_coast`), predicted on the controller's own model."""
+        from gracenav.simulate import Reference, simulate
+
+        lead = max(1, round(CAPTURE_LEAD / self.dt))
+        wait = self._coast(x, lead + round(CAPTURE_WAIT / self.dt))
+        ref = Reference(wait.ref_states[: lead + 1], wait.ref_inputs[: lead + 1], self.dt)
+        gains = self.hc.gains
+        x_at = simulate(x, ref, gains, params=self.hc.params).states[-1]
+        tree, hc = self.tree, self.hc
+        self.capture_tries += 1
+        self.capture_at = self.ticks + lead
+        self.capture_job = self._job(lambda: hc.capture_plan(x_at, tree))
+        self.segment = wait
+
+    def _wait_more(self, seg: _Segment) -> None:
+        """The wait ran out before the capture landed: balancing mode."""
+        self.capture_job = None
+        self._balance(position_state(self.x, self.r))
+
+    def _land(self, seg: _Segment, k: int) -> bool:
+        """Adopt what the background finished by this tick; True when that ended the
+        running segment (something else starts at this tick)."""
+        dyn = self.dyn
+        if self.look_job is not None and self.look_job.ready(self.ticks):
+            assert dyn is not None
+            look, self.look_job = self.look_job.result(), None
+            self.tree = dyn.apply(look)
+            if not (seg.balance or seg.waiting):
+                # The policy is judged against what the look saw, here.
+                self.segment = None
+                seg.split, seg.truncated = True, False
+                self._end_segment(seg, k, exited=False, looked=True)
+                return True
+        if (
+            self.capture_job is not None
+            and self.ticks >= self.capture_at
+            and self.capture_job.ready(self.ticks)
+        ):
+            plan, self.capture_job = self.capture_job.result(), None
+            self.segment = None
+            p = position_state(self.x, self.r)
+            t = self.t
+            if plan is not None and plan.policies[0].start_domain.contains(p):
+                self._event(CAPTURE, EventReason.CAPTURE)
+                self.capture_plans.append((t, plan))
+                self.captured, self.capture_row = list(plan.policies), plan.rest_row
+                self.current, self.offset = CAPTURE, 0
+                return True
+            nxt = self.hc.best_policy(p, self.tree)
+            if nxt >= 0:
+                self._event(nxt, EventReason.NOT_IN_GOAL)
+                self.current, self.offset = nxt, 0
+            elif self.capture_tries < CAPTURE_TRIES:
+                self._ask_capture(self.x)
+            else:
+                self._balance(p)
+            return True
+        return False
 
     def _next_policy(
         self, seg: _Segment, p: FloatArray, exited: bool
@@ -453,6 +643,9 @@ class Supervisor:
             self.goals_reached.append((self.t, self.k_goal))
             if self.k_goal + 1 < len(self.sequence):
                 self.k_goal += 1
+                if self.tree_job is not None:  # started a whole policy ago
+                    self.tree_job.result()
+                    self.tree_job = None
                 self.tree = hc.tree(self.sequence[self.k_goal])
                 if self.dyn is not None:
                     self.tree = self.dyn.retarget(self.tree)
@@ -506,7 +699,7 @@ class Supervisor:
         p = position_state(self.x, self.r)
         t = self.t
         if dyn is not None and dyn.due(t):
-            self.tree = dyn.update(t, p[:2], self.tree)
+            self._look(t, p)
             if not dyn.hold_clear(self.hold_xy, BALANCING_MARGIN + HOLD_MARGIN):
                 self.hold_xy = self.hc.recovery_point(p, self.tree, dyn)
         if options.resume_from_balancing and not self.held:

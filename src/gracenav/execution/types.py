@@ -4,7 +4,9 @@ options and the command it returns every tick."""
 from __future__ import annotations
 
 import enum
+import math
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,11 +22,15 @@ __all__ = [
     "Command",
     "EventReason",
     "ExecutionOptions",
+    "PlanningMode",
     "SwitchEvent",
     "TaskStatus",
 ]
 
 FloatArray = NDArray[np.float64]
+
+#: How computations longer than a tick relate to the ticks (:class:`ExecutionOptions`).
+PlanningMode = Literal["instant", "threaded", "modelled"]
 
 #: Policy index of the terminal regulator in :attr:`Episode.policy` and
 #: :class:`SwitchEvent` (it is not a library row; −1 is balancing mode).
@@ -136,6 +142,21 @@ class ExecutionOptions:
     simulation : SimulationOptions
         Integration substeps and sensor noise of the simulated plant, and the fall
         limit (a lean beyond it ends the task with :attr:`TaskStatus.FELL`).
+    planning : {"instant", "threaded", "modelled"}
+        How computations longer than a tick (captures, repairs for moving obstacles,
+        the next goal's tree) relate to the ticks. ``"instant"``: inside the
+        :meth:`HybridController.step` that needs them, as if they took no time (the
+        default: simulated episodes are deterministic). ``"threaded"``: on a worker
+        thread while ``step`` goes on returning commands (for a robot: ``step`` never
+        waits for a plan): the running policy goes on until a repair lands, and the
+        robot follows the exited policy's reference (or holds its last point) until a
+        capture lands, which is then used only if its start domain contains the state
+        at that tick. ``"modelled"``: as ``"threaded"``, but each computation runs at
+        once and lands ``planning_latency`` later in simulated time (the waiting of a
+        robot, reproduced in simulation).
+    planning_latency : float or None
+        With ``"modelled"``: the latency (s) of every computation, or None for its own
+        wall time on this machine (runs are then not reproducible).
     """
 
     plant: PlantKind = "model3d"
@@ -147,6 +168,8 @@ class ExecutionOptions:
     capture: bool = True
     simulation: SimulationOptions = field(default_factory=SimulationOptions)
     sensing: ObstacleSensing = field(default_factory=ObstacleSensing)
+    planning: PlanningMode = "instant"
+    planning_latency: float | None = None
 
     def __post_init__(self) -> None:
         if self.plant not in PLANT_KINDS:
@@ -155,6 +178,16 @@ class ExecutionOptions:
             raise ConfigError(f"max_time must be positive, got {self.max_time!r}")
         if not self.goal_tolerance > 0:
             raise ConfigError(f"goal_tolerance must be positive, got {self.goal_tolerance!r}")
+        if self.planning not in ("instant", "threaded", "modelled"):
+            raise ConfigError(
+                f"planning must be 'instant', 'threaded' or 'modelled', got {self.planning!r}"
+            )
+        if self.planning_latency is not None and not (
+            math.isfinite(self.planning_latency) and self.planning_latency >= 0.0
+        ):
+            raise ConfigError(
+                f"planning_latency must be >= 0 (s) or None, got {self.planning_latency!r}"
+            )
 
 
 @dataclass(frozen=True, slots=True)
