@@ -91,8 +91,8 @@ def _readme_library_example() -> str:
     text = (ROOT / "README.md").read_text()
     section = text.split("\n## Library\n", 1)[1].split("\n## ", 1)[0]
     blocks = re.findall(r"```python\n(.*?)```", section, flags=re.DOTALL)
-    assert len(blocks) == 1
-    return blocks[0]
+    assert len(blocks) == 2  # the library, then the same controller tick by tick
+    return "\n".join(blocks)
 
 
 def test_readme_library_example_imports_only_gracenav() -> None:
@@ -110,6 +110,7 @@ def test_readme_library_example_runs() -> None:
     namespace: dict[str, object] = {"__name__": "readme_example"}
     exec(compile(_readme_library_example(), "README.md", "exec"), namespace)
     assert namespace["episode"].status.value == "goal_reached"  # type: ignore[attr-defined]
+    assert namespace["cmd"].status.value == "goal_reached"  # type: ignore[attr-defined]
 
 
 def test_examples_run_headless(capsys) -> None:
