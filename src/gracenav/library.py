@@ -73,6 +73,7 @@ __all__ = [
     "max_trim_speed",
     "quarter_turn",
     "sample_position_states",
+    "sweep_samples",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -835,12 +836,29 @@ class _Sweep:
     total_reach: float  # bound around the start point
 
 
-def _sweep_samples(
+def sweep_samples(
     policy: MotionPolicy, step: float, lead: float = 0.0
 ) -> tuple[FloatArray, FloatArray, IntArray]:
-    """The reference path relative to its start (T+1, 2), led by ``lead`` (s) times the
-    reference velocity, its arc length at each tick (T+1,) and the ticks selected at
-    most ``step`` of arc (plus one tick) apart."""
+    """Samples of a policy's reference path for checking its swept outer domain D'.
+
+    Parameters
+    ----------
+    policy : MotionPolicy
+    step : float
+        Largest arc (m) between selected samples (plus one control tick of motion).
+    lead : float
+        The path is led by this (s) times the reference velocity.
+
+    Returns
+    -------
+    pos : ndarray, shape (T+1, 2)
+        The (led) reference path relative to its start (m), at every tick.
+    cum : ndarray, shape (T+1,)
+        Its arc length at each tick (m).
+    sel : ndarray of int
+        The selected ticks, ascending: the first, the last, and ticks at most
+        ``step`` of arc (plus one tick) apart.
+    """
     prim = policy.primitive
     pos = prim.position[:, :2] - prim.position[0, :2] + lead * prim.position[:, 2:4]
     seg = np.hypot(*np.diff(pos, axis=0).T)
@@ -861,11 +879,11 @@ def _sweep(
     """Select samples of the reference path (led by half the stopping allowance times
     the velocity) at most ``step`` of arc (plus one tick) apart and the conservative
     reach of D' around each, plus half the allowance ``speed_clearance`` (s) times the
-    reference speed (see :func:`build_library`). ``samples``: :func:`_sweep_samples`
+    reference speed (see :func:`build_library`). ``samples``: :func:`sweep_samples`
     of the policy's primitive with that lead, if already computed."""
     prim = policy.primitive
     half = 0.5 * speed_clearance
-    pos, cum, sel = samples if samples is not None else _sweep_samples(policy, step, half)
+    pos, cum, sel = samples if samples is not None else sweep_samples(policy, step, half)
     outer, _ = policy.outer_extents(sel * prim.dt)
     speed = np.hypot(prim.position[:, 2], prim.position[:, 3])
     reach = outer + half * speed[sel]
@@ -901,7 +919,7 @@ def _palette_tables(
         for pol in palette.policies:
             got = samples.get(id(pol.primitive))
             if got is None:
-                got = samples[id(pol.primitive)] = _sweep_samples(pol, step, 0.5 * speed_clearance)
+                got = samples[id(pol.primitive)] = sweep_samples(pol, step, 0.5 * speed_clearance)
             sweeps.append(_sweep(pol, step, got, speed_clearance))
         cached = (PolicyTypes.from_palette(palette), _sweep_tables(sweeps))
         palette._derived[key] = cached
