@@ -18,6 +18,7 @@ against the map as instantiation does; :func:`capture_for` keeps one per library
 from __future__ import annotations
 
 import math
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from functools import cached_property
@@ -223,12 +224,27 @@ def _sweep_of(policy: MotionPolicy, step: float) -> tuple[FloatArray, FloatArray
     return np.ascontiguousarray(pts), reach
 
 
+#: Each library's capture planner (:func:`capture_for`), kept as long as the library
+#: lives. A planner holds its library weakly, so it does not keep its own key alive.
+_PLANNERS: weakref.WeakKeyDictionary[PolicyLibrary, Capture] = weakref.WeakKeyDictionary()
+
+
 def capture_for(library: PolicyLibrary) -> Capture:
-    """The library's :class:`Capture` (built once and kept with the library)."""
-    got = library._cache.get("capture")
+    """The library's capture planner: built on first use, then reused.
+
+    Parameters
+    ----------
+    library : PolicyLibrary
+
+    Returns
+    -------
+    Capture
+        The same planner for every call on ``library`` as long as the library lives
+        (its remembered ways onto rest trims are shared by every controller on it).
+    """
+    got = _PLANNERS.get(library)
     if got is None:
-        got = library._cache["capture"] = Capture(library)
-    assert isinstance(got, Capture)
+        got = _PLANNERS[library] = Capture(library)
     return got
 
 
@@ -239,11 +255,14 @@ class Capture:
     ----------
     library : PolicyLibrary
         Its palette's catches and shifts are placed on its map, with its footprint;
-        its rest trims are where captures end.
+        its rest trims are where captures end. The planner keeps what it needs of it
+        and holds the library itself weakly (see :attr:`library`).
     """
 
     def __init__(self, library: PolicyLibrary) -> None:
-        self.library = library
+        self._library = weakref.ref(library)
+        self.world_map = library.world_map
+        self.footprint_radius = library.footprint_radius
         palette = library.palette
         opts = palette.options.catch
         self.options = opts
@@ -309,16 +328,30 @@ class Capture:
         self._chained: dict[tuple[int, int, bool], list[_Way]] = {}
 
     @property
+    def library(self) -> PolicyLibrary:
+        """The library it plans on.
+
+        Raises
+        ------
+        ReferenceError
+            If the library no longer exists (the planner holds it weakly).
+        """
+        library = self._library()
+        if library is None:
+            raise ReferenceError("the library of this capture planner no longer exists")
+        return library
+
+    @property
     def available(self) -> bool:
         """Whether the palette has catches to place."""
         return bool(self._members)
 
     def _clear(self, points: FloatArray, reach: FloatArray) -> BoolArray:
-        world = self.library.world_map
+        world = self.world_map
         flat = points.reshape(-1, 2)
         ok = world.is_free(flat) & (
             world.clearance(flat)
-            >= self.library.footprint_radius + np.broadcast_to(reach, points.shape[:-1]).reshape(-1)
+            >= self.footprint_radius + np.broadcast_to(reach, points.shape[:-1]).reshape(-1)
         )
         return np.asarray(ok.reshape(points.shape[:-1]), dtype=bool)
 
@@ -370,7 +403,7 @@ class Capture:
         ks = np.flatnonzero(~self._shift_still | still)
         ks = ks[np.all(self._clear(q + self._shift_path[ks], self._shift_reach[ks]), axis=1)]
         ends = self._shift_cells[ks] + np.asarray(cell, dtype=np.int64)
-        room = self.library.world_map.clearance(self.origin + ends * self.grid)
+        room = self.world_map.clearance(self.origin + ends * self.grid)
         best: dict[int, _Way] = {}
         firsts = 0
         for n in np.argsort(-room, kind="stable")[:_CHAIN_TRIES]:

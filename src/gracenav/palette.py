@@ -161,9 +161,6 @@ class Palette:
     primitive_options: PrimitiveSetOptions = field(default_factory=PrimitiveSetOptions)
     catches: Sequence[MotionPolicy] = ()
     shifts: Sequence[MotionPolicy] = ()
-    #: Tables other modules derive from this palette alone (e.g. instantiation's),
-    #: computed once and kept with it.
-    _derived: dict[str, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __len__(self) -> int:
         return len(self.policies)
