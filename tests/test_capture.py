@@ -219,6 +219,32 @@ def test_a_pushed_robot_is_caught_by_a_regulator_and_reaches_the_goal(palette, r
     assert not any(e.reason is EventReason.BALANCING for e in ep.events)
 
 
+def test_what_is_kept_per_library_is_shared_and_goes_with_the_library(palette, room) -> None:
+    """The capture planner, the terminal regulators of a goal and the swept D' of the
+    moving-obstacle tracker are built once per library and shared by everything on it,
+    and none of them keeps the library alive."""
+    import gc
+    import weakref
+
+    from gracenav.capture import capture_for
+    from gracenav.replanning import ObstacleSensing, ObstacleTracker
+
+    lib = build_library(palette, room, footprint_radius=0.2, max_halvings=0)
+    graph = build_graph(lib)
+    goal = np.array([2.13, 2.37, 0.0, 0.0])
+    terms = HybridController(lib, graph).terminal_policies(goal)
+    assert terms
+    assert HybridController(lib, graph).terminal_policies(goal) is terms
+    capture = capture_for(lib)
+    assert capture_for(lib) is capture and capture.library is lib
+    tracker = ObstacleTracker(lib, graph, (), ObstacleSensing())
+    assert ObstacleTracker(lib, graph, (), ObstacleSensing()).swept is tracker.swept
+    alive = weakref.ref(lib)
+    del lib, graph, terms, capture, tracker
+    gc.collect()
+    assert alive() is None
+
+
 @pytest.fixture(scope="module")
 def box_room_controller(palette):
     wm = load_map(

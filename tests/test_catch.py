@@ -11,15 +11,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gracenav.capture import (
+from gracenav.capture import PlacedPolicy, capture_for
+from gracenav.catches import (
     PUSHED,
     SETTLED,
     STILL,
-    PlacedPolicy,
     band_leans,
-    capture_for,
     catch_policies,
     catch_primitives,
+    lean_class_of,
     settled_leans,
     shift_cells,
     verify_headings,
@@ -484,8 +484,6 @@ def test_still_catches_chain_into_still_shifts_and_serve_only_the_plan_lean(
     shift's S contains its G but not a settled catch's G, so only still catches hand
     over to still shifts. Near walls some states are captured only by still catches,
     and those are refused once the lean leaves the still band."""
-    from gracenav.capture import _lean_class
-
     opts = palette.options.catch
     assert opts is not None
     settled = _catch(palette, 0.3, SETTLED)
@@ -502,7 +500,7 @@ def test_still_catches_chain_into_still_shifts_and_serve_only_the_plan_lean(
     end = placed.end_xy
     for shift in palette.shifts:
         s_shift = PlacedPolicy(shift, 0.0, end).start_domain
-        is_still = _lean_class(shift) == STILL
+        is_still = lean_class_of(shift) == STILL
         assert s_shift.contains_domain(placed.goal_domain)
         # Same end point: a settled catch's G fits in a plain shift's S only.
         g_settled = PlacedPolicy(settled, 0.7, end - settled.primitive.rotated_by(0.7).displacement)
@@ -518,14 +516,14 @@ def test_still_catches_chain_into_still_shifts_and_serve_only_the_plan_lean(
             [rng.uniform(0.8, 4.2), y, rng.uniform(-0.2, 0.2), -rng.uniform(0.05, 0.4)]
         )
         plan = capture.plan(state, lean_deviation=(0.0, 0.0))
-        if plan is None or _lean_class(plan.catch.policy) != STILL:
+        if plan is None or lean_class_of(plan.catch.policy) != STILL:
             continue
         if capture.plan(state, lean_deviation=(math.radians(0.3), 0.0)) is None:
             only_still += 1
         for before, pol in itertools.pairwise(plan.policies):  # catch ⪰ shift (⪰ shift)
             assert pol.start_domain.contains_domain(before.goal_domain)
         tilted = capture.plan(state, lean_deviation=(math.radians(1.0), 0.0))
-        assert tilted is None or _lean_class(tilted.catch.policy) == PUSHED
+        assert tilted is None or lean_class_of(tilted.catch.policy) == PUSHED
     assert only_still >= 20
 
 

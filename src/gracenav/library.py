@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 import os
 import time
+import weakref
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Any
@@ -73,6 +74,7 @@ __all__ = [
     "max_trim_speed",
     "quarter_turn",
     "sample_position_states",
+    "sweep_samples",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -529,7 +531,9 @@ class PolicyLibrary:
     iterations: tuple[InstantiationIteration, ...] = ()
     sweep_step: float = 0.0
     speed_clearance: float = 0.0
-    _cache: dict[str, Any] = field(default_factory=dict, init=False, repr=False)
+    #: The spatial hash of the start domains, built by the first start-domain query
+    #: (:meth:`_start_index`, its only writer; :meth:`_with_results` carries it over).
+    _starts: _StartIndex | None = field(default=None, init=False, repr=False, compare=False)
 
     def __len__(self) -> int:
         return int(self.palette_index.shape[0])
@@ -588,7 +592,8 @@ class PolicyLibrary:
     # -- start domain queries --------------------------------------------------------
 
     def _start_index(self) -> _StartIndex:
-        idx = self._cache.get("start_index")
+        """The spatial hash of the start domains, built on first use."""
+        idx = self._starts
         if idx is None:
             types = self.types
             m = types.start_shape
@@ -606,9 +611,23 @@ class PolicyLibrary:
                 group_start=_readonly(np.append(first, len(order)).astype(np.int64)),
                 order=_readonly(order.astype(np.int64)),
             )
-            self._cache["start_index"] = idx
-        result: _StartIndex = idx
-        return result
+            object.__setattr__(self, "_starts", idx)  # a cache: the library stays frozen
+        return idx
+
+    def _with_results(
+        self,
+        *,
+        coverage: float,
+        iterations: tuple[InstantiationIteration, ...],
+        speed_clearance: float,
+    ) -> PolicyLibrary:
+        """This library with the results of :func:`build_library` recorded; the rows are
+        the same, so it keeps the start-domain index already built."""
+        out = replace(
+            self, coverage=coverage, iterations=iterations, speed_clearance=speed_clearance
+        )
+        object.__setattr__(out, "_starts", self._starts)
+        return out
 
     def _hits(self, points: FloatArray) -> tuple[IntArray, IntArray]:
         """(query row, group) pairs where the group's start domain contains the point.
@@ -835,12 +854,29 @@ class _Sweep:
     total_reach: float  # bound around the start point
 
 
-def _sweep_samples(
+def sweep_samples(
     policy: MotionPolicy, step: float, lead: float = 0.0
 ) -> tuple[FloatArray, FloatArray, IntArray]:
-    """The reference path relative to its start (T+1, 2), led by ``lead`` (s) times the
-    reference velocity, its arc length at each tick (T+1,) and the ticks selected at
-    most ``step`` of arc (plus one tick) apart."""
+    """Samples of a policy's reference path for checking its swept outer domain D'.
+
+    Parameters
+    ----------
+    policy : MotionPolicy
+    step : float
+        Largest arc (m) between selected samples (plus one control tick of motion).
+    lead : float
+        The path is led by this (s) times the reference velocity.
+
+    Returns
+    -------
+    pos : ndarray, shape (T+1, 2)
+        The (led) reference path relative to its start (m), at every tick.
+    cum : ndarray, shape (T+1,)
+        Its arc length at each tick (m).
+    sel : ndarray of int
+        The selected ticks, ascending: the first, the last, and ticks at most
+        ``step`` of arc (plus one tick) apart.
+    """
     prim = policy.primitive
     pos = prim.position[:, :2] - prim.position[0, :2] + lead * prim.position[:, 2:4]
     seg = np.hypot(*np.diff(pos, axis=0).T)
@@ -861,11 +897,11 @@ def _sweep(
     """Select samples of the reference path (led by half the stopping allowance times
     the velocity) at most ``step`` of arc (plus one tick) apart and the conservative
     reach of D' around each, plus half the allowance ``speed_clearance`` (s) times the
-    reference speed (see :func:`build_library`). ``samples``: :func:`_sweep_samples`
+    reference speed (see :func:`build_library`). ``samples``: :func:`sweep_samples`
     of the policy's primitive with that lead, if already computed."""
     prim = policy.primitive
     half = 0.5 * speed_clearance
-    pos, cum, sel = samples if samples is not None else _sweep_samples(policy, step, half)
+    pos, cum, sel = samples if samples is not None else sweep_samples(policy, step, half)
     outer, _ = policy.outer_extents(sel * prim.dt)
     speed = np.hypot(prim.position[:, 2], prim.position[:, 3])
     reach = outer + half * speed[sel]
@@ -887,26 +923,62 @@ def _sweep(
     return _Sweep(offsets, reach, centres, greach, first, size, total)
 
 
-def _palette_tables(
-    palette: Palette, step: float, speed_clearance: float
-) -> tuple[PolicyTypes, dict[str, NDArray[Any]]]:
+#: The palette's types and swept outer domain tables of one sweep step and speed clearance.
+_Tables = tuple[PolicyTypes, dict[str, NDArray[Any]]]
+
+
+class _PaletteTables:
+    """Instantiation's tables of each live palette, by sweep step and speed clearance
+    (``f"{step!r}-{speed_clearance!r}"``).
+
+    A palette is keyed by identity (it is not hashable) and held weakly: its entry goes
+    when it is collected. The tables hold no reference to the palette.
+    """
+
+    def __init__(self) -> None:
+        self._entries: dict[int, tuple[weakref.ref[Palette], dict[str, _Tables]]]
+        self._entries = {}
+
+    def of(self, palette: Palette) -> dict[str, _Tables]:
+        """The tables computed so far for ``palette`` (a dict to add to)."""
+        key = id(palette)
+        got = self._entries.get(key)
+        if got is not None and got[0]() is palette:
+            return got[1]
+        entries = self._entries
+
+        def forget(ref: weakref.ref[Palette]) -> None:
+            if key in entries and entries[key][0] is ref:
+                del entries[key]
+
+        tables: dict[str, _Tables] = {}
+        entries[key] = (weakref.ref(palette, forget), tables)
+        return tables
+
+
+_PALETTE_TABLES = _PaletteTables()
+
+
+def _palette_tables(palette: Palette, step: float, speed_clearance: float) -> _Tables:
     """The palette's types and swept outer domain tables for sweep step ``step`` and
     ``speed_clearance``: they depend on the palette only, so they are computed once per
     palette, step and speed clearance."""
-    key = f"library-tables-{step!r}-{speed_clearance!r}"
-    cached = palette._derived.get(key)
+    cache = _PALETTE_TABLES.of(palette)
+    key = f"{step!r}-{speed_clearance!r}"
+    cached = cache.get(key)
     if cached is None:
         samples: dict[int, tuple[FloatArray, FloatArray, IntArray]] = {}
         sweeps = []
         for pol in palette.policies:
             got = samples.get(id(pol.primitive))
             if got is None:
-                got = samples[id(pol.primitive)] = _sweep_samples(pol, step, 0.5 * speed_clearance)
+                got = samples[id(pol.primitive)] = sweep_samples(pol, step, 0.5 * speed_clearance)
             sweeps.append(_sweep(pol, step, got, speed_clearance))
-        cached = (PolicyTypes.from_palette(palette), _sweep_tables(sweeps))
-        palette._derived[key] = cached
-    types, tables = cached
-    return types, tables
+        cached = cache[key] = (
+            PolicyTypes.from_palette(palette),
+            _sweep_tables(sweeps),
+        )
+    return cached
 
 
 def _lattice(world_map: WorldMap, spacing: float) -> tuple[FloatArray, int, int, FloatArray]:
@@ -1584,8 +1656,6 @@ def build_library(
         if coverage >= coverage_target:
             break
     assert library is not None
-    out = replace(
-        library, coverage=coverage, iterations=tuple(iterations), speed_clearance=allowance
+    return library._with_results(
+        coverage=coverage, iterations=tuple(iterations), speed_clearance=allowance
     )
-    out._cache.update(library._cache)
-    return out

@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from gracenav._cache import cache_dir
 from gracenav._io import atomic_write_bytes
+from gracenav.catches import PUSHED, SETTLED, STILL, catch_policies, shift_cells, shift_policies
 from gracenav.control import ControllerGains, LQRWeights, design_gains
 from gracenav.errors import CacheError, ConfigError
 from gracenav.params import BallbotParams
@@ -145,8 +146,9 @@ class Palette:
     primitive_options : PrimitiveSetOptions
         Options the primitive set Σ(d) was planned with.
     catches, shifts : tuple of MotionPolicy
-        The verified catches and shifts (:mod:`gracenav.capture`): placed at the
-        robot's state, never on the lattice, so not among ``policies``.
+        The verified catches and shifts (:mod:`gracenav.catches`): placed at the
+        robot's state (:mod:`gracenav.capture`), never on the lattice, so not among
+        ``policies``.
     """
 
     policies: tuple[MotionPolicy, ...]
@@ -159,9 +161,6 @@ class Palette:
     primitive_options: PrimitiveSetOptions = field(default_factory=PrimitiveSetOptions)
     catches: Sequence[MotionPolicy] = ()
     shifts: Sequence[MotionPolicy] = ()
-    #: Tables other modules derive from this palette alone (e.g. instantiation's),
-    #: computed once and kept with it.
-    _derived: dict[str, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __len__(self) -> int:
         return len(self.policies)
@@ -759,16 +758,8 @@ def _braking_one(
     return braking_policies(prim, gains, options, shape)
 
 
-def _shift_cells(options: CatchOptions, d: float) -> list[tuple[int, int]]:
-    from gracenav.capture import shift_cells
-
-    return shift_cells(options, d)
-
-
 def _catch_classes(speed: float, options: CatchOptions) -> tuple[str, ...]:
     """The lean classes of the catches from ``speed`` (m/s) the options ask for."""
-    from gracenav.capture import PUSHED, SETTLED, STILL
-
     return (
         *((PUSHED,) if speed in options.speeds else ()),
         *((SETTLED,) if speed in options.speeds or speed in options.settled_speeds else ()),
@@ -780,8 +771,7 @@ def _catch_one(
     args: tuple[float, tuple[str, ...], ControllerGains, VerificationOptions, DomainShape],
 ) -> tuple[MotionPolicy, ...]:
     """The catches of some lean classes from one speed (see
-    :func:`gracenav.capture.catch_policies`)."""
-    from gracenav.capture import catch_policies
+    :func:`gracenav.catches.catch_policies`)."""
     from gracenav.policies import RegulatorOptions, push_lean_table
 
     speed, classes, gains, options, shape = args
@@ -793,9 +783,7 @@ def _catch_one(
 def _shift_one(
     args: tuple[tuple[int, int], float, ControllerGains, VerificationOptions, DomainShape],
 ) -> tuple[MotionPolicy, ...]:
-    """One shift (see :func:`gracenav.capture.shift_policies`)."""
-    from gracenav.capture import shift_policies
-
+    """One shift (see :func:`gracenav.catches.shift_policies`)."""
     cell, d, gains, options, shape = args
     return shift_policies(cell, d, gains, options, shape)
 
@@ -887,9 +875,7 @@ def build_palette(
             for v in sorted({*cat.speeds, *cat.settled_speeds, *cat.still_speeds})
         ]
     )
-    shift_jobs = (
-        [] if cat is None else [(c, d, gains, options, shape) for c in _shift_cells(cat, d)]
-    )
+    shift_jobs = [] if cat is None else [(c, d, gains, options, shape) for c in shift_cells(cat, d)]
     results: list[MotionPolicy] = []
     catches: list[MotionPolicy] = []
     shifts: list[MotionPolicy] = []

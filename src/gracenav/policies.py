@@ -584,7 +584,7 @@ class BrakingOptions:
 @dataclass(frozen=True)
 class CatchOptions:
     """The palette's catches and shifts: capture at the robot's own state (see
-    :mod:`gracenav.capture`).
+    :mod:`gracenav.catches`).
 
     Parameters
     ----------
@@ -883,7 +883,7 @@ class VerificationOptions:
         :mod:`gracenav.braking` for what they add and what they cost).
     catch : CatchOptions or None
         The palette's catches and shifts, placed at the robot's own state
-        (:mod:`gracenav.capture`); None: none.
+        (:mod:`gracenav.catches`); None: none.
     """
 
     boundary_points: int = 64

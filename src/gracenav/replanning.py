@@ -38,9 +38,10 @@ from __future__ import annotations
 
 import math
 import time
+import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numba import njit
@@ -50,6 +51,9 @@ from gracenav import graph as _graph
 from gracenav.errors import ConfigError
 from gracenav.planning import LazyPolicyTree, PolicyTree
 from gracenav.world.moving import MovingObstacle
+
+if TYPE_CHECKING:
+    from gracenav.library import PolicyLibrary
 
 __all__ = [
     "HOLD_HORIZON",
@@ -671,6 +675,13 @@ class Look:
     changed: int
 
 
+#: Each library's swept D' (:meth:`SweptDomains.of_palette` of its palette), shared by
+#: every tracker on the library and kept as long as the library lives.
+_SWEPT: weakref.WeakKeyDictionary[PolicyLibrary, SweptDomains] = weakref.WeakKeyDictionary()
+#: The libraries a tracker has run the replan kernels on once (:func:`_warm_up`).
+_WARM: weakref.WeakSet[PolicyLibrary] = weakref.WeakSet()
+
+
 class ObstacleTracker:
     """The hybrid controller's view of the moving obstacles during one run: what it
     knows, which policies that blocks, the repaired tree, and the replan log.
@@ -695,17 +706,16 @@ class ObstacleTracker:
         self.graph = graph
         self.obstacles = tuple(obstacles)
         self.sensing = sensing
-        swept = library._cache.get("swept_domains")
+        swept = _SWEPT.get(library)
         if swept is None:
-            swept = SweptDomains.of_palette(library.palette)
-            library._cache["swept_domains"] = swept
+            swept = _SWEPT[library] = SweptDomains.of_palette(library.palette)
         self.swept: SweptDomains = swept
         self.blocked: BoolArray = np.zeros(len(library), dtype=bool)
         self.known: tuple[KnownObstacle, ...] = ()
-        if not library._cache.get("replan_warm"):
+        if library not in _WARM:
             # Compile (or load) the kernels outside the timed replans.
             _warm_up(library, graph, swept)
-            library._cache["replan_warm"] = True
+            _WARM.add(library)
         self.next_time = 0.0
         self.replans: list[ReplanEvent] = []
 

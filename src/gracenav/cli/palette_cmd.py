@@ -182,7 +182,7 @@ def run_verify(args: argparse.Namespace) -> int:
             failed.append(pol.name)
     placed = (*pal.catches, *pal.shifts)
     if placed:
-        from gracenav.capture import reverify
+        from gracenav.catches import reverify
         from gracenav.policies import RegulatorOptions, push_lean_table
 
         pushes = opts.regulator or RegulatorOptions()

@@ -96,6 +96,14 @@ class TerminalPolicy(PlacedPolicy):
         return f"{self.policy.name}@({x:g}, {y:g})"
 
 
+#: Terminal regulators by goal (:meth:`HybridController.terminal_policies`) of each
+#: library: they depend on the library and the goal only, so every controller on the same
+#: library (a scenario's runs, a campaign's trials) shares them, as long as it lives.
+_TERMINALS: weakref.WeakKeyDictionary[
+    PolicyLibrary, dict[tuple[float, ...], tuple[TerminalPolicy, ...]]
+] = weakref.WeakKeyDictionary()
+
+
 class HybridController:
     """Executes navigation tasks with a policy library, its graph and single-goal trees.
 
@@ -137,11 +145,8 @@ class HybridController:
         self._adjacency = graph.search_form(self.criterion.value)
         self._trees: dict[int, PolicyTree | LazyPolicyTree] = {}
         self._last_goal = -1  # the goal policy of the last tree asked for
-        # Terminal regulators depend on the library and the goal only: shared by every
-        # controller on the same library (a scenario's runs, a campaign's trials).
-        self._terminals: dict[tuple[float, ...], tuple[TerminalPolicy, ...]] = (
-            library._cache.setdefault("terminal_policies", {})
-        )
+        # Shared by every controller on the same library (see _TERMINALS).
+        self._terminals = _TERMINALS.setdefault(library, {})
         self.tree_seconds: list[float] = []
         self.dt = 1.0 / CONTROL_RATE
         self.radius = float(self.gains.params.ball_radius)
