@@ -12,22 +12,16 @@ import pytest
 import yaml
 
 from gracenav.execution import ExecutionOptions, HybridController, TaskStatus
-from gracenav.graph import build_graph
-from gracenav.library import build_library
-from gracenav.palette import load_palette
 from gracenav.simulate import Push, state_from_position
-from gracenav.world import load_map
 
 GOAL = [2.0, 2.0, 0.0, 0.0]
 SCENARIOS = Path(str(resources.files("gracenav") / "data" / "scenarios"))
 
 
 @pytest.fixture(scope="module")
-def library():  # type: ignore[no-untyped-def]
-    pal = load_palette()
-    data = yaml.safe_load((SCENARIOS / "fig5_point_to_point.yaml").read_text())
-    lib = build_library(pal, load_map(data["map"]), max_halvings=1)
-    return lib, build_graph(lib)
+def library(fig5_library, fig5_graph):  # type: ignore[no-untyped-def]
+    """The Fig. 5 map's library (one halving; conftest) and its graph."""
+    return fig5_library, fig5_graph
 
 
 @pytest.mark.parametrize(
@@ -121,7 +115,7 @@ def _mismatch_scenario(max_time: float = 40.0):  # type: ignore[no-untyped-def]
     return parse_scenario(data, source="mismatch.yaml")
 
 
-def test_scenario_plant_factors_run_to_an_end_in_bounded_time() -> None:
+def test_scenario_plant_factors_run_to_an_end_in_bounded_time(palette) -> None:
     from gracenav.scenarios import run_scenario, summary_dict
 
     sc = _mismatch_scenario()
@@ -129,7 +123,7 @@ def test_scenario_plant_factors_run_to_an_end_in_bounded_time() -> None:
     t0 = time.perf_counter()
     res = run_scenario(sc)
     assert time.perf_counter() - t0 < 60.0
-    nominal = load_palette().params
+    nominal = palette.params
     plant = res.plant_params
     assert plant is not None
     for name in dataclasses.asdict(nominal):
