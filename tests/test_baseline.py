@@ -121,8 +121,7 @@ def test_shortcut_and_smoothing_keep_clearance(room: WorldMap) -> None:
     np.testing.assert_allclose(plan.curve[[0, -1]], [[1, 1], [4, 4]], rtol=0, atol=1e-9)
     # the timed path follows the curve from start to goal
     np.testing.assert_allclose(plan.timed.position[[0, -1]], [[1, 1], [4, 4]], rtol=0, atol=1e-9)
-    again = plan_decoupled(room, (1, 1), (4, 4), footprint_radius=FOOTPRINT, limits=LIMITS)
-    assert again.seconds < 1.0  # compiled: tens of ms on one core
+    # Its time (tens of ms once compiled) is measured by bench/bench_navigation.py.
     xy, spacing = smooth_path(room, plan.shortcut, FOOTPRINT + 0.2)
     assert 0 < spacing <= 0.5
     assert np.min(room.clearance(xy)) >= FOOTPRINT + 0.2 - 1e-9

@@ -16,6 +16,9 @@ from gracenav.simulate import Push, state_from_position
 
 GOAL = [2.0, 2.0, 0.0, 0.0]
 SCENARIOS = Path(str(resources.files("gracenav") / "data" / "scenarios"))
+#: Wall-clock hang guard (s) of one run: a run takes well under a second, so this fails
+#: only on a run that never ends, not on a slow machine.
+HANG_GUARD_S = 60.0
 
 
 @pytest.fixture(scope="module")
@@ -42,7 +45,7 @@ def test_every_mismatched_run_ends_in_bounded_time(library, scale) -> None:  # t
     options = ExecutionOptions(max_time=40.0)
     t0 = time.perf_counter()
     ep = robot.run(x0, [GOAL], disturbances=[Push(time=2.0, impulse=(0.0, -8.0))], options=options)
-    assert time.perf_counter() - t0 < 60.0
+    assert time.perf_counter() - t0 < HANG_GUARD_S
     assert ep.status in tuple(TaskStatus)
     # time advanced, and never far past max_time
     assert 0.0 < ep.time[-1] <= options.max_time + 5.0
@@ -122,7 +125,7 @@ def test_scenario_plant_factors_run_to_an_end_in_bounded_time(palette) -> None:
     assert dict(sc.plant_factors) == FACTORS
     t0 = time.perf_counter()
     res = run_scenario(sc)
-    assert time.perf_counter() - t0 < 60.0
+    assert time.perf_counter() - t0 < HANG_GUARD_S
     nominal = palette.params
     plant = res.plant_params
     assert plant is not None
