@@ -396,6 +396,7 @@ def test_summary_reports_verified_recoveries_and_balancing_time() -> None:
     assert run.balancing_s == 0.0 and run.reached_goal
 
 
+@pytest.mark.slow
 def test_palette_verify_rechecks_regulators_as_built(palette, tmp_path, capsys) -> None:
     """`gracenav palette verify` re-verifies a capture regulator with the push leans and
     boundary points it was built with, optionally on another plant (--params)."""

@@ -152,7 +152,7 @@ def test_placed_catch_is_the_rotated_and_moved_primitive(palette, angle) -> None
     [
         (0.5, PUSHED, 15.0),
         (1.0, PUSHED, 105.0),
-        (1.2, PUSHED, 45.0),
+        pytest.param(1.2, PUSHED, 45.0, marks=pytest.mark.slow),
         (0.3, SETTLED, 75.0),
         (0.8, SETTLED, 165.0),
         (0.45, STILL, 45.0),
@@ -181,6 +181,7 @@ def test_catches_hold_at_headings_and_points_the_verifier_never_used(
     assert report.runs == 96 * 5
 
 
+@pytest.mark.slow
 def test_every_capture_plan_passes_an_independent_dense_check(palette, box_room) -> None:
     """Random moving states of the box room: a plan's catch S contains the state, the
     boundary of every tick's D' of the catch and the shifts keeps the footprint clear
@@ -341,6 +342,7 @@ def test_rest_trims_by_grid_point_equal_a_scan(box_room) -> None:
         np.testing.assert_array_equal(rows, rest[np.all(cells == key, axis=1)])
 
 
+@pytest.mark.slow
 def test_two_shifts_lead_onto_the_lattice_where_one_cannot(cluttered) -> None:
     """States 0.3-0.5 m from the cluttered room's obstacles, moving at up to 0.5 m/s:
     some catches end where no single shift with a clear swept D' reaches a rest trim
@@ -449,6 +451,7 @@ def test_pushes_with_the_papers_controller_recover_into_verified_domains(box_roo
     assert reached >= runs - 1
 
 
+@pytest.mark.slow
 def test_catch_policies_keep_the_first_candidate_that_verifies(palette) -> None:
     """Rebuilding one settled catch verifies candidates shortest reach first and stops at
     the first that passes; each rejected one says why (D', G, lean or saturation)."""
@@ -477,6 +480,7 @@ def test_catch_policies_keep_the_first_candidate_that_verifies(palette) -> None:
     assert [p.primitive.name for p in out] == names[: len(out)]
 
 
+@pytest.mark.slow
 def test_still_catches_chain_into_still_shifts_and_serve_only_the_plan_lean(
     palette, box_room
 ) -> None:

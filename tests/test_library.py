@@ -449,6 +449,7 @@ def test_plot_library(tmp_path) -> None:
     assert out2.stat().st_size > 10_000
 
 
+@pytest.mark.slow
 def test_plot_library_coverage_with_captures(tmp_path, monkeypatch, request) -> None:
     """With a palette that has catches, --coverage adds a fourth panel: the states
     covered by a start domain or a capture (here on a 12 x 12 grid instead of 30 x 30).
