@@ -1,6 +1,7 @@
 # Quick start (see README.md):
 #   make demo   -- set up a virtual environment and run the main job
 #   make test   -- set up and run the whole test suite, lint and type checks
+#   make test-fast -- lint and the suite without the tests marked slow (under 2 minutes)
 # Installs take every version from requirements/lock.txt (see `make lock`).
 # `make test VENV=.venv-latest CONSTRAINTS=` runs the suite on the newest versions instead.
 PYTHON ?= python3
@@ -14,7 +15,7 @@ ifneq ($(CONSTRAINTS),)
 export PIP_CONSTRAINT := $(abspath $(CONSTRAINTS))
 endif
 
-.PHONY: demo test setup setup-test lint typecheck bench lock clean
+.PHONY: demo test test-fast setup setup-test lint typecheck bench lock clean
 
 $(VENV)/.installed: pyproject.toml $(CONSTRAINTS)
 	$(PYTHON) -m venv $(VENV)
@@ -41,6 +42,10 @@ typecheck: setup-test
 
 test: lint typecheck
 	$(PY) -m pytest -q
+
+# While developing: the tests marked slow (pytest -m slow) are left out.
+test-fast: lint
+	$(PY) -m pytest -q -m "not slow"
 
 # bench_scale.py (100 m maps, needs > 8 GiB for the open hall) runs on its own.
 bench: setup-test

@@ -453,7 +453,9 @@ def test_params_json_duplicate_key(tmp_path, capsys) -> None:
 
 def test_params_with_an_absurd_ball_radius_end_quickly(tmp_path, capsys) -> None:
     # A 10^9 m ball under the nominal controller used to loop at constant time until
-    # memory ran out; the run now ends (fell or no_progress) at once.
+    # memory ran out; the run now ends (fell or no_progress) at once: in simulated time
+    # (time_s below); the wall-clock bound is only a hang guard (the command takes
+    # well under a second).
     params = write(tmp_path, "ball_radius: 1.0e9\n", "p.yaml")
     path = write(tmp_path, BASE)
     out = str(tmp_path / "o")
@@ -461,7 +463,7 @@ def test_params_with_an_absurd_ball_radius_end_quickly(tmp_path, capsys) -> None
     t0 = time.perf_counter()
     status, _, err = cli(argv, capsys)
     assert status == 1 and "Traceback" not in err
-    assert time.perf_counter() - t0 < 20.0
+    assert time.perf_counter() - t0 < 60.0
     run = json.loads((tmp_path / "o" / "summary.json").read_text())["runs"][0]
     assert run["stop_reason"] in ("fell", "no_progress") and run["time_s"] < 1.0
 
@@ -498,6 +500,16 @@ def test_partial_params_file_is_valid(tmp_path, capsys) -> None:
 
 
 def test_out_is_checked_before_any_simulation(tmp_path, capsys, monkeypatch) -> None:
+    import gracenav.scenarios
+
+    runs = []
+    run_scenario = gracenav.scenarios.run_scenario
+
+    def counted(*args, **kwargs):  # type: ignore[no-untyped-def]
+        runs.append(1)
+        return run_scenario(*args, **kwargs)
+
+    monkeypatch.setattr(gracenav.scenarios, "run_scenario", counted)
     path = write(tmp_path, BASE)
     (tmp_path / "cwd").mkdir()
     monkeypatch.chdir(tmp_path / "cwd")  # empty: only the rule protects it
@@ -515,10 +527,9 @@ def test_out_is_checked_before_any_simulation(tmp_path, capsys, monkeypatch) -> 
         (Path(".."), "is the current directory or holds it"),
     ]
     for out, message in cases:
-        t0 = time.perf_counter()
         status, _, err = cli(["run", str(path), "--out", str(out)], capsys)
         assert status == 2 and message in one_line(err), err
-        assert time.perf_counter() - t0 < 2.0  # refused before the library and the runs
+        assert not runs  # refused before the library and the runs
     assert afile.read_text() == "keep" and (foreign / "notes.txt").read_text() == "mine"
 
 

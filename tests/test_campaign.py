@@ -261,6 +261,7 @@ def test_cli_publishes_results_as_a_unit(tmp_path: Path) -> None:
     assert (out / "results" / "results.csv").stat().st_ino != before
 
 
+@pytest.mark.slow
 def test_unreachable_cluster_is_one_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -285,6 +286,7 @@ def test_unreachable_cluster_is_one_line(
     assert "\n" not in err
 
 
+@pytest.mark.slow
 def test_dask_cluster_equals_local_and_survives_a_dead_worker(tmp_path: Path) -> None:
     """A real local Dask cluster of two worker processes runs the campaign; one worker
     is killed while it runs a trial. No trial is lost, the lost run is counted, and every

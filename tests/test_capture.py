@@ -14,7 +14,7 @@ from gracenav.errors import PlanningError
 from gracenav.execution import EventReason, HybridController, TaskStatus
 from gracenav.graph import build_graph, gracefully_prepares
 from gracenav.library import build_library
-from gracenav.palette import REGULATOR_NAME, load_palette
+from gracenav.palette import REGULATOR_NAME
 from gracenav.policies import (
     BrakingOptions,
     RegulatorOptions,
@@ -33,11 +33,6 @@ from gracenav.simulate import (
 from gracenav.world import load_map
 
 PARAMS = BallbotParams()
-
-
-@pytest.fixture(scope="module")
-def palette():
-    return load_palette()
 
 
 @pytest.fixture(scope="module")
@@ -119,12 +114,12 @@ def test_regulator_holds_from_states_the_verifier_never_used(palette, regulators
     assert np.max(res.max_lean) <= palette.options.lean_limit
 
 
-def test_push_lean_table_is_linear_for_small_pushes_and_conserves_momentum() -> None:
+def test_push_lean_table_is_linear_for_small_pushes_and_conserves_momentum(palette) -> None:
     """Right after an impulse I on the body centre of mass, the angular momentum about
     the floor contact is I (r + ℓ) (the floor's impulsive reaction acts through the
     contact; the drive torque is internal); the response is linear in I while nothing
     saturates."""
-    gains = load_palette().gains
+    gains = palette.gains
     table = push_lean_table(gains, (2.0, 4.0), (0.0, 0.1))
     np.testing.assert_allclose(table.speed[1], 2.0 * table.speed[0], rtol=0.02)
     np.testing.assert_allclose(table.lean_rate[1], 2.0 * table.lean_rate[0], rtol=0.02)
@@ -246,16 +241,8 @@ def test_what_is_kept_per_library_is_shared_and_goes_with_the_library(palette, r
 
 
 @pytest.fixture(scope="module")
-def box_room_controller(palette):
-    wm = load_map(
-        {
-            "bounds": [[0.0, 0.0], [5.0, 5.0]],
-            "resolution": 0.05,
-            "obstacles": [{"rectangle": {"min": [2.0, 2.0], "max": [3.0, 3.0]}}],
-        }
-    )
-    lib = build_library(palette, wm, footprint_radius=0.2, max_halvings=1)
-    return HybridController(lib, build_graph(lib))
+def box_room_controller(box_room_library, box_room_graph):
+    return HybridController(box_room_library, box_room_graph)
 
 
 @pytest.mark.parametrize("goal", [(1.13, 1.37), (4.02, 3.61), (0.9, 4.1)])
@@ -435,6 +422,7 @@ def test_summary_reports_verified_recoveries_and_balancing_time() -> None:
     assert run.balancing_s == 0.0 and run.reached_goal
 
 
+@pytest.mark.slow
 def test_palette_verify_rechecks_regulators_as_built(palette, tmp_path, capsys) -> None:
     """`gracenav palette verify` re-verifies a capture regulator with the push leans and
     boundary points it was built with, optionally on another plant (--params)."""

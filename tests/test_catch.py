@@ -27,7 +27,6 @@ from gracenav.catches import (
 from gracenav.execution import CAPTURE, EventReason, ExecutionOptions, HybridController
 from gracenav.graph import build_graph
 from gracenav.library import build_library
-from gracenav.palette import load_palette
 from gracenav.policies import RegulatorOptions, push_lean_table
 from gracenav.simulate import Push, position_state, state_from_position
 from gracenav.world import load_map
@@ -41,14 +40,15 @@ BOX_ROOM = {
 
 
 @pytest.fixture(scope="module")
-def palette():
-    return load_palette()
+def box_room(box_room_library, box_room_graph):
+    """The library of BOX_ROOM (footprint 0.2 m, one halving; conftest) and its graph."""
+    return box_room_library, box_room_graph
 
 
 @pytest.fixture(scope="module")
-def box_room(palette):
-    lib = build_library(palette, load_map(BOX_ROOM), footprint_radius=0.2, max_halvings=1)
-    return lib, build_graph(lib)
+def cluttered(palette):
+    """The cluttered room's library: footprint 0.2 m, one halving."""
+    return build_library(palette, load_map(CLUTTERED), footprint_radius=0.2, max_halvings=1)
 
 
 def _catch(palette, speed: float, lean_class: str):
@@ -152,7 +152,7 @@ def test_placed_catch_is_the_rotated_and_moved_primitive(palette, angle) -> None
     [
         (0.5, PUSHED, 15.0),
         (1.0, PUSHED, 105.0),
-        (1.2, PUSHED, 45.0),
+        pytest.param(1.2, PUSHED, 45.0, marks=pytest.mark.slow),
         (0.3, SETTLED, 75.0),
         (0.8, SETTLED, 165.0),
         (0.45, STILL, 45.0),
@@ -181,6 +181,7 @@ def test_catches_hold_at_headings_and_points_the_verifier_never_used(
     assert report.runs == 96 * 5
 
 
+@pytest.mark.slow
 def test_every_capture_plan_passes_an_independent_dense_check(palette, box_room) -> None:
     """Random moving states of the box room: a plan's catch S contains the state, the
     boundary of every tick's D' of the catch and the shifts keeps the footprint clear
@@ -224,7 +225,7 @@ def _assert_plan_is_sound(lib, plan) -> None:
     assert lib.policy(plan.rest_row).start_domain.contains_domain(last)
 
 
-def test_turning_a_catch_off_its_end_point_holds_more_states(palette, monkeypatch) -> None:
+def test_turning_a_catch_off_its_end_point_holds_more_states(cluttered, monkeypatch) -> None:
     """S couples position and velocity errors, so a catch turned off the direction to
     its end point (its start moved sideways on the circle of radius its stop) holds
     states whose sideways velocity pointing it straight at that point does not.
@@ -239,7 +240,7 @@ def test_turning_a_catch_off_its_end_point_holds_more_states(palette, monkeypatc
     import gracenav.capture as capture_module
     from gracenav.simulate import run_policy
 
-    lib = build_library(palette, load_map(CLUTTERED), footprint_radius=0.2, max_halvings=1)
+    lib = cluttered
     capture = capture_for(lib)
     world = lib.world_map
     rng = np.random.default_rng(12)
@@ -341,13 +342,14 @@ def test_rest_trims_by_grid_point_equal_a_scan(box_room) -> None:
         np.testing.assert_array_equal(rows, rest[np.all(cells == key, axis=1)])
 
 
-def test_two_shifts_lead_onto_the_lattice_where_one_cannot(palette) -> None:
+@pytest.mark.slow
+def test_two_shifts_lead_onto_the_lattice_where_one_cannot(cluttered) -> None:
     """States 0.3-0.5 m from the cluttered room's obstacles, moving at up to 0.5 m/s:
     some catches end where no single shift with a clear swept D' reaches a rest trim
     (measured: 48 of 600 such states), and a plain shift after the first one does.
     The chain is sound, and the paper's controller starts from such a state (inside
     no library S) and runs it to the goal."""
-    lib = build_library(palette, load_map(CLUTTERED), footprint_radius=0.2, max_halvings=1)
+    lib = cluttered
     capture = capture_for(lib)
     world = lib.world_map
     rng = np.random.default_rng(7)
@@ -449,6 +451,7 @@ def test_pushes_with_the_papers_controller_recover_into_verified_domains(box_roo
     assert reached >= runs - 1
 
 
+@pytest.mark.slow
 def test_catch_policies_keep_the_first_candidate_that_verifies(palette) -> None:
     """Rebuilding one settled catch verifies candidates shortest reach first and stops at
     the first that passes; each rejected one says why (D', G, lean or saturation)."""
@@ -477,6 +480,7 @@ def test_catch_policies_keep_the_first_candidate_that_verifies(palette) -> None:
     assert [p.primitive.name for p in out] == names[: len(out)]
 
 
+@pytest.mark.slow
 def test_still_catches_chain_into_still_shifts_and_serve_only_the_plan_lean(
     palette, box_room
 ) -> None:
@@ -527,7 +531,7 @@ def test_still_catches_chain_into_still_shifts_and_serve_only_the_plan_lean(
     assert only_still >= 20
 
 
-def test_flat_position_state_moves_the_ball_state_by_the_lean(palette) -> None:
+def test_flat_position_state_moves_the_ball_state_by_the_lean(palette, box_room_library) -> None:
     """(y, ẏ) = (x + L φ, ẋ + L φ̇) per axis, with L the flat output's length. After a
     push the ball's speed swings by several times as much as the flat output's
     (measured: 4-5 times), which is why pushed catches test the flat state."""
@@ -552,9 +556,7 @@ def test_flat_position_state_moves_the_ball_state_by_the_lean(palette) -> None:
     assert np.all(flat_change < 0.5 * ball_change), (flat_change, ball_change)
     # The hybrid controller's plan uses the flat state for pushed catches only: the
     # 0.9 m/s pushed catch's S centre in flat coordinates, its ball 0.3 m/s ahead.
-    capture = capture_for(
-        build_library(palette, load_map(BOX_ROOM), footprint_radius=0.2, max_halvings=1)
-    )
+    capture = capture_for(box_room_library)
     centre = np.array([1.0, 1.0, 0.9, 0.0])
     ball = centre + np.array([0.0, 0.0, 0.3, 0.0])
     with_flat = capture._candidates(ball, (PUSHED,), centre)

@@ -48,6 +48,7 @@ def test_help_explains(capsys) -> None:
     assert "summary.json" in out and "scenario" in out
 
 
+@pytest.mark.slow
 def test_plot_commands(tmp_path) -> None:
     assert main(["plot", "primitives", "--out", str(tmp_path / "p.png")]) == 0
     assert main(["plot", "domain", "rest_to_cruise_x_2_0", "--out", str(tmp_path / "d.png")]) == 0

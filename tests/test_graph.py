@@ -103,7 +103,9 @@ def edge_set(graph: PreparesGraph) -> set[tuple[int, int]]:
 # -- tests -----------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize(("size", "halvings"), [(3.0, 0), (2.0, 1)])
+@pytest.mark.parametrize(
+    ("size", "halvings"), [pytest.param(3.0, 0, marks=pytest.mark.slow), (2.0, 1)]
+)
 def test_graph_matches_brute_force(size: float, halvings: int) -> None:
     wmap = free_map(size, size, [{"circle": {"center": [size / 2, size / 2], "radius": 0.15}}])
     lib = build_library(

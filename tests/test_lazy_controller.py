@@ -16,7 +16,6 @@ from gracenav.errors import ConfigError
 from gracenav.execution import ExecutionOptions, HybridController, TaskStatus
 from gracenav.graph import build_graph
 from gracenav.library import build_library
-from gracenav.palette import load_palette
 from gracenav.planning import LazyPolicyTree, PolicyTree
 from gracenav.policies import PrimitiveKind
 from gracenav.simulate import Push, state_from_position
@@ -28,11 +27,6 @@ SCENARIOS = Path(str(resources.files("gracenav") / "data" / "scenarios"))
 
 def _map(name: str):  # type: ignore[no-untyped-def]
     return load_map(yaml.safe_load((SCENARIOS / name).read_text())["map"])
-
-
-@pytest.fixture(scope="module")
-def fig5_library():  # type: ignore[no-untyped-def]
-    return build_library(load_palette(), _map("fig5_point_to_point.yaml"), max_halvings=1)
 
 
 def _controllers(lib, monkeypatch: pytest.MonkeyPatch):  # type: ignore[no-untyped-def]
@@ -73,12 +67,12 @@ def test_point_to_point_with_pushes_as_with_the_whole_tree(
         assert isinstance(whole.tree(whole.goal_policy(g[0])), PolicyTree)
 
 
-def test_surveillance_as_with_the_whole_tree(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_surveillance_as_with_the_whole_tree(palette, monkeypatch: pytest.MonkeyPatch) -> None:
     """One loop of the paper's surveillance task: each next goal's tree is read at the
     previous goal policy; the same switches as with whole trees."""
     spec = yaml.safe_load((SCENARIOS / "fig8_surveillance.yaml").read_text())
     lib = build_library(
-        load_palette(), _map("fig8_surveillance.yaml"), footprint_radius=0.2, max_halvings=1
+        palette, _map("fig8_surveillance.yaml"), footprint_radius=0.2, max_halvings=1
     )
     whole, lazy = _controllers(lib, monkeypatch)
     x0 = state_from_position(spec["task"]["start"], whole.params.ball_radius)

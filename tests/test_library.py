@@ -449,7 +449,8 @@ def test_plot_library(tmp_path) -> None:
     assert out2.stat().st_size > 10_000
 
 
-def test_plot_library_coverage_with_captures(tmp_path, monkeypatch) -> None:
+@pytest.mark.slow
+def test_plot_library_coverage_with_captures(tmp_path, monkeypatch, request) -> None:
     """With a palette that has catches, --coverage adds a fourth panel: the states
     covered by a start domain or a capture (here on a 12 x 12 grid instead of 30 x 30).
     On a 4 m room with a central box it covers far more than the start domains alone
@@ -459,12 +460,12 @@ def test_plot_library_coverage_with_captures(tmp_path, monkeypatch) -> None:
     from PIL import Image
 
     from gracenav.capture import Capture
-    from gracenav.palette import load_palette
     from gracenav.plotting import library as plotting
 
     monkeypatch.setattr(plotting, "_CAPTURE_CELLS", 12)
     wmap = free_map(0.0, 0.0, 4.0, 4.0, [{"rectangle": {"min": [1.7, 1.7], "max": [2.3, 2.3]}}])
-    lib = build_library(load_palette(), wmap, footprint_radius=0.2, max_halvings=1)
+    shipped = request.getfixturevalue("palette")  # conftest's; `palette` here is synthetic
+    lib = build_library(shipped, wmap, footprint_radius=0.2, max_halvings=1)
     frac, extent, share = plotting._capture_grid(lib, np.random.default_rng(0), progress=False)
     assert frac.shape == (12, 12) and extent == pytest.approx((0.0, 4.0, 0.0, 4.0))
     ok = np.isfinite(frac)
@@ -486,16 +487,14 @@ def test_plot_library_coverage_with_captures(tmp_path, monkeypatch) -> None:
         assert b.size[0] == pytest.approx(4 * a.size[0], rel=0.02)
 
 
-def test_the_largest_start_domain_that_fits_is_placed() -> None:
+def test_the_largest_start_domain_that_fits_is_placed(request) -> None:
     """Scaled domains: per primitive, orientation and point only the largest verified
     start domain whose swept D' fits is instantiated (checked against libraries built
     from each size alone)."""
     import dataclasses
     from pathlib import Path
 
-    from gracenav.palette import load_palette
-
-    pal = load_palette()
+    pal = request.getfixturevalue("palette")  # conftest's; `palette` here is synthetic
     world = load_map(Path(__file__).parent.parent / "examples" / "maps" / "room_5m_box.yaml")
     lib = build_library(pal, world, max_halvings=0)
     n_points = lib.lattice_shape[0] * lib.lattice_shape[1]

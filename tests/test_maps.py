@@ -7,7 +7,6 @@ import json
 import math
 import struct
 import tempfile
-import time
 import zlib
 from pathlib import Path
 from typing import Any
@@ -518,13 +517,11 @@ def test_office_map_deterministic_and_sane() -> None:
         office_map(5.0)
 
 
-def test_office_map_50m_loads_with_clearance_well_under_a_second() -> None:
-    t0 = time.perf_counter()
+def test_office_map_50m_loads_with_clearance() -> None:
+    # Its time (well under a second) is measured by bench/bench_library.py.
     m = office_map(50.0, 0.05, seed=0)
-    _ = m.clearance_grid
-    elapsed = time.perf_counter() - t0
     assert m.grid_shape == (1000, 1000)
-    assert elapsed < 1.0, f"office map load + clearance took {elapsed:.3f} s"
+    assert m.clearance_grid.shape == m.grid_shape
 
 
 # ----------------------------------------------------------------------------------------

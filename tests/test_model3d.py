@@ -92,6 +92,7 @@ def kinetic_energy(q: np.ndarray, qd: np.ndarray) -> float:
 
 
 # --- (a) generated code --------------------------------------------------------------
+@pytest.mark.slow
 def test_generated_module_is_up_to_date(tmp_path: Path) -> None:
     pytest.importorskip("sympy")
     out = tmp_path / "gen.py"
@@ -267,6 +268,7 @@ def make_rk4(mass_matrix: Callable[..., Any], bias: Callable[..., Any]) -> Calla
     return rk4  # type: ignore[no-any-return]
 
 
+@pytest.mark.slow
 def test_energy_conserved_without_friction_and_input(compiled: dict[str, Any]) -> None:
     rk4 = make_rk4(compiled["mass_matrix"], compiled["bias"])
     x0 = np.array([0.3, -0.2, 0.15, -0.1, 0.5, -0.3, 0.4, 0.6])  # leaning and turning

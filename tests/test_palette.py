@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import time
 
 import numpy as np
 import pytest
@@ -180,9 +179,8 @@ def test_real_rebuild_for_other_parameters(monkeypatch, tmp_path) -> None:
     assert len(pal) >= 35 and pal.params == heavier and pal.options == options
     assert all(p.report is not None and p.report.passed for p in pal.policies)
     assert cached_palette_path(pal.key).is_file()
-    t0 = time.perf_counter()
+    # Read from the cache (build=False; bench/bench_palette.py times a palette read).
     again = load_palette(params=heavier, options=options, build=False)
-    assert time.perf_counter() - t0 < 1.0
     assert again.names == pal.names
     np.testing.assert_array_equal(again.gains.lqr, pal.gains.lqr)
 

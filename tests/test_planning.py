@@ -563,14 +563,13 @@ def test_lazy_tree_unreachable_budget_and_errors() -> None:
 
 
 @pytest.mark.parametrize("where", ["area", "office"])
-def test_lazy_tree_on_real_palette_libraries(where: str) -> None:
+def test_lazy_tree_on_real_palette_libraries(where: str, request: pytest.FixtureRequest) -> None:
     """The real palette on the 3.5 m area (two halvings) and a 14 m office: random
     goals, queries of the policies whose S contains a random state (best, as the hybrid
     controller asks), then a whole lazy tree: plan_tree's costs, both criteria."""
-    from gracenav.palette import load_palette
     from gracenav.world import office_map
 
-    pal = load_palette()
+    pal = request.getfixturevalue("palette")  # conftest's; `palette` here is synthetic
     if where == "area":
         wm = load_map({"bounds": [[0, 0], [3.5, 3.5]], "obstacles": [], "resolution": 0.05})
         lib = build_library(pal, wm, max_halvings=2)
@@ -601,12 +600,13 @@ def test_lazy_tree_on_real_palette_libraries(where: str) -> None:
     assert answered > 10
 
 
-def test_lazy_tree_answers_pushes_along_its_path(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_lazy_tree_answers_pushes_along_its_path(
+    monkeypatch: pytest.MonkeyPatch, request: pytest.FixtureRequest
+) -> None:
     """After a first query, states pushed off the planned path (velocity perturbed by
     5 cm/s): the best policy is the whole tree's, and most are answered without
     resuming the search (a closed row provably cheapest)."""
     import gracenav.planning as planning_module
-    from gracenav.palette import load_palette
     from gracenav.world import office_map
 
     calls = []
@@ -617,7 +617,8 @@ def test_lazy_tree_answers_pushes_along_its_path(monkeypatch: pytest.MonkeyPatch
         return kernel(*args)
 
     monkeypatch.setattr(planning_module, "_lazy_settle", counted)
-    lib = build_library(load_palette(), office_map(14.0, 0.05, seed=1), max_halvings=0)
+    shipped = request.getfixturevalue("palette")  # conftest's; `palette` here is synthetic
+    lib = build_library(shipped, office_map(14.0, 0.05, seed=1), max_halvings=0)
     graph = build_graph(lib)
     trims = lib.trim_indices()
     rng = np.random.default_rng(13)

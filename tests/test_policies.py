@@ -12,7 +12,6 @@ from gracenav import BallbotParams, ConfigError
 from gracenav.control import design_gains, planar_to_position_coordinates
 from gracenav.domains import correlated_shape
 from gracenav.model import Ballbot3D, PlanarBallbot
-from gracenav.palette import load_palette
 from gracenav.policies import (
     SampledPrimitive,
     VerificationOptions,
@@ -25,11 +24,6 @@ from gracenav.policies import (
 from gracenav.simulate import run_policy
 
 PARAMS = BallbotParams()
-
-
-@pytest.fixture(scope="module")
-def palette():
-    return load_palette()
 
 
 def shrink_factor(cov2: np.ndarray, horizon: float, plane: str, row: int) -> float:
@@ -126,16 +120,15 @@ def test_reverification_agrees_with_the_stored_report(palette, name: str) -> Non
     assert rep.max_outer_value == pytest.approx(pol.report.max_outer_value, rel=1e-9)
 
 
-def test_verification_can_fail() -> None:
-    pal = load_palette()
-    pol = pal["rest_to_rest_1_0"]
+def test_verification_can_fail(palette) -> None:
+    pol = palette["rest_to_rest_1_0"]
     # Too tight an outer domain: the non-minimum-phase transient leaves it.
     tight = dataclasses.replace(pol, outer_factors=(1.0, 1.0))
-    rep = verify_policy(tight, pal.options)
+    rep = verify_policy(tight, palette.options)
     assert not rep.passed and rep.max_outer_value > 1.0
     # Too large a start domain: the lean limit is exceeded.
     huge = pol.with_start_radii(pol.start_radii.scaled(4.0))
-    rep = verify_policy(huge, dataclasses.replace(pal.options, lean_limit=np.deg2rad(6.0)))
+    rep = verify_policy(huge, dataclasses.replace(palette.options, lean_limit=np.deg2rad(6.0)))
     assert not rep.passed
 
 

@@ -15,7 +15,7 @@ pytest.importorskip("mujoco")
 
 
 def _goal_values(name: str) -> list[float]:
-    pal = load_palette()
+    pal = load_palette()  # in a worker process: its own palette
     pol = pal[name]
     ell = np.linalg.cholesky(np.linalg.inv(pol.start_domain.shape_matrix))
     out = []
@@ -27,10 +27,10 @@ def _goal_values(name: str) -> list[float]:
 
 
 @pytest.mark.slow
-def test_every_policy_ends_in_its_goal_domain_on_mujoco() -> None:
+def test_every_policy_ends_in_its_goal_domain_on_mujoco(palette) -> None:
     """Each primitive's largest verified start domain (the policy or its largest variant)."""
     largest: dict[str, tuple[float, str]] = {}
-    for pol in load_palette():
+    for pol in palette:
         best = largest.get(pol.primitive.name)
         if best is None or pol.scale > best[0]:
             largest[pol.primitive.name] = (pol.scale, pol.name)
@@ -43,9 +43,8 @@ def test_every_policy_ends_in_its_goal_domain_on_mujoco() -> None:
         assert np.all(outer <= 1.0), (name, outer)
 
 
-def test_run_policy_model3d_matches_mujoco_closely() -> None:
-    pal = load_palette()
-    pol = pal["cruise_x_to_cruise_y_1_1"]
+def test_run_policy_model3d_matches_mujoco_closely(palette) -> None:
+    pol = palette["cruise_x_to_cruise_y_1_1"]
     p0 = pol.start_domain.center + np.array([0.05, -0.03, 0.0, 0.02])
     a = run_policy(pol, p0)
     b = run_policy(pol, p0, plant="mujoco")

@@ -18,7 +18,6 @@ import yaml
 from gracenav.errors import ConfigError
 from gracenav.graph import build_graph
 from gracenav.library import build_library
-from gracenav.palette import load_palette
 from gracenav.planning import plan_tree
 from gracenav.replanning import (
     SWEEP_STEP,
@@ -37,10 +36,9 @@ SCENARIOS = Path(str(resources.files("gracenav") / "data" / "scenarios"))
 
 
 @pytest.fixture(scope="module")
-def small():
-    pal = load_palette()
+def small(palette):
     wm = load_map({"bounds": [[0, 0], [3.5, 3.5]], "obstacles": [], "resolution": 0.05})
-    lib = build_library(pal, wm, footprint_radius=0.2, max_halvings=0)
+    lib = build_library(palette, wm, footprint_radius=0.2, max_halvings=0)
     return lib, build_graph(lib)
 
 

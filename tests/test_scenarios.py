@@ -15,12 +15,8 @@ import yaml
 from gracenav import ConfigError, PlanningError
 from gracenav.cli import main
 from gracenav.execution import EventReason, ExecutionOptions, HybridController, TaskStatus
-from gracenav.graph import build_graph
-from gracenav.library import build_library
-from gracenav.palette import load_palette
 from gracenav.scenarios import load_scenario, parse_scenario, run_scenario, write_outputs
 from gracenav.simulate import state_from_position
-from gracenav.world import load_map
 
 SCENARIOS = Path(str(resources.files("gracenav") / "data" / "scenarios"))
 DEG5 = 5.0
@@ -103,11 +99,9 @@ def test_push_is_absorbed_or_recovered() -> None:
 
 
 @pytest.fixture(scope="module")
-def controller() -> HybridController:
-    pal = load_palette()
-    wm = load_map(yaml.safe_load((SCENARIOS / "fig5_point_to_point.yaml").read_text())["map"])
-    lib = build_library(pal, wm, max_halvings=1)
-    return HybridController(lib, build_graph(lib))
+def controller(fig5_library, fig5_graph) -> HybridController:
+    """On the Fig. 5 map's library (one halving; conftest)."""
+    return HybridController(fig5_library, fig5_graph)
 
 
 def test_goal_errors_say_which(controller: HybridController) -> None:

@@ -207,8 +207,8 @@ def test_modelled_latency_captures_land_later_and_still_catch(room) -> None:  # 
         reasons = [e.reason for e in ep.events]
         assert EventReason.CAPTURE in reasons and EventReason.BALANCING not in reasons, mode
         runs[mode] = ep
-    inst = [e for e in runs["instant"].events if e.reason is EventReason.CAPTURE][0]
-    late = [e for e in runs["modelled"].events if e.reason is EventReason.CAPTURE][0]
+    inst = next(e for e in runs["instant"].events if e.reason is EventReason.CAPTURE)
+    late = next(e for e in runs["modelled"].events if e.reason is EventReason.CAPTURE)
     # The catch starts the lead (51 ticks) after the domain exit the instant one starts at.
     assert late.tick - inst.tick == 51
 
