@@ -319,6 +319,7 @@ class SampledPrimitive:
         """
         from gracenav._kernels import rebuild_fine
         from gracenav.model.ballbot3d import Ballbot3D
+        from gracenav.model.friction import friction_constants
 
         intervals = np.array([it[0].shape[0] - 1 for it in items], dtype=np.int64)
         strides = np.array([int(it[2]) for it in items], dtype=np.int64)
@@ -330,7 +331,7 @@ class SampledPrimitive:
         tau = np.empty((total, 2))
         pos = np.empty((total, 6))
         c = Ballbot3D(params).constants()
-        fr = np.array([params.coulomb_friction, params.viscous_friction, params.friction_smoothing])
+        fr = friction_constants(params)
         by_step: dict[tuple[int, float], list[int]] = {}
         for k, (_, _, stride, meta) in enumerate(items):
             by_step.setdefault((int(stride), float(meta["dt"])), []).append(k)

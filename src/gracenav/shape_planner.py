@@ -56,9 +56,11 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import BSpline, PPoly
 
 from gracenav._kernels import bias as _bias3
+from gracenav._kernels import friction as _friction
 from gracenav._kernels import mass_matrix as _mm3
 from gracenav.control import CONTROL_RATE
 from gracenav.errors import ConfigError
+from gracenav.model.friction import friction_constants
 from gracenav.model.planar import PlanarBallbot
 from gracenav.params import BallbotParams
 
@@ -454,10 +456,6 @@ def _model_constants(params: BallbotParams, kind: int) -> FloatArray:
     )
 
 
-def _friction_constants(params: BallbotParams) -> FloatArray:
-    return np.array([params.coulomb_friction, params.viscous_friction, params.friction_smoothing])
-
-
 # --------------------------------------------------------------------------------------
 # Compiled kernels
 # --------------------------------------------------------------------------------------
@@ -493,11 +491,6 @@ def _shape_accel(kind, c, q, qd, phdd, wm, wb, out):
                 )
             else:
                 out[i] = (beta * ph * g / r - (alpha + gam + 2.0 * beta) * phdd[i]) / (alpha + beta)
-
-
-@njit(cache=True)
-def _friction(fr, thd):
-    return fr[0] * np.tanh(thd / fr[2]) + fr[1] * thd
 
 
 @njit(cache=True)
@@ -810,7 +803,7 @@ class ShapeTrajectory:
         _inverse_dynamics(
             kind,
             _model_constants(self.params, kind),
-            _friction_constants(self.params),
+            friction_constants(self.params),
             q,
             qd,
             np.ascontiguousarray(phdd),
@@ -1094,7 +1087,7 @@ def _summarise(
     qd = np.ascontiguousarray(np.concatenate([thd, phd], axis=1))
     qdd = np.empty_like(q)
     tau = np.empty((n + 1, 2))
-    _inverse_dynamics(kind, c, _friction_constants(params), q, qd, phdd, qdd, tau)
+    _inverse_dynamics(kind, c, friction_constants(params), q, qd, phdd, qdd, tau)
     tilt = np.arccos(np.clip(np.cos(ph[:, 0]) * np.cos(ph[:, 1]), -1.0, 1.0))
     # Richardson estimate of the integration error: integrate with step 2h.
     integration_error = float("nan")

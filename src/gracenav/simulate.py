@@ -23,6 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from gracenav.control import CONTROL_RATE, ControllerGains, design_gains
 from gracenav.errors import ConfigError
+from gracenav.model.friction import friction_constants
 from gracenav.params import BallbotParams
 
 if TYPE_CHECKING:
@@ -357,10 +358,6 @@ def _disturbance_arrays(
     return force, impulse, jump, tether, gains
 
 
-def _friction_constants(params: BallbotParams) -> FloatArray:
-    return np.array([params.coulomb_friction, params.viscous_friction, params.friction_smoothing])
-
-
 def _model_constants(params: BallbotParams) -> FloatArray:
     from gracenav.model.ballbot3d import Ballbot3D
 
@@ -408,9 +405,9 @@ def _run_kernel(
     final = np.zeros((nb, 8))
     _kernels.closed_loop(
         _model_constants(plant_params),
-        _friction_constants(plant_params),
+        friction_constants(plant_params),
         _model_constants(gains.params),
-        _friction_constants(gains.params),
+        friction_constants(gains.params),
         gains.kernel_arrays(),
         gains.max_lean_compensation,
         gains.friction_compensation,
@@ -583,7 +580,7 @@ def _simulate_mujoco(
     plant = MujocoBallbot(plant_params, timestep=dt / options.substeps)
     model = Ballbot3D(plant_params)
     plant.set_state(x0)
-    fr = _friction_constants(gains.params)
+    fr = friction_constants(gains.params)
     k = gains.kernel_arrays()
     r = gains.params.ball_radius
     states = np.zeros((nt + 1, 8))
