@@ -94,7 +94,8 @@ def rebuild_fine(cstates, cacc, cfirst, ffirst, intervals, basis, h, c, fr, r, s
     :func:`inverse_dynamics`) and ``pos`` (·, 6: ball position, velocity and
     acceleration, r (θ + φ) and its derivatives). Between coarse samples q, q̇, q̈ come
     from the quintic Hermite interpolant with ``basis`` (3, stride, 6) (values, first and
-    second derivatives in the unit interval); ``h`` is the coarse step (s)."""
+    second derivatives in the unit interval, :func:`gracenav._hermite.quintic_hermite_basis`);
+    ``h`` is the coarse step (s)."""
     stride = basis.shape[1]
     wm = np.empty((4, 4))
     wh = np.empty(4)
