@@ -59,6 +59,7 @@ from gracenav.errors import ConfigError
 from gracenav.library import DEFAULT_SPEED_CLEARANCE, MAX_SPEED_CLEARANCE
 from gracenav.params import BallbotParams
 from gracenav.replanning import ObstacleSensing
+from gracenav.sim.plant import PLANT_KINDS, PlantKind
 from gracenav.simulate import Disturbance, Drag, Push, SimulationOptions
 from gracenav.world.moving import MovingObstacle, moving_clearance
 
@@ -146,7 +147,7 @@ class Scenario:
     starts: tuple[tuple[float, ...], ...]
     loops: int
     disturbances: tuple[Disturbance, ...]
-    plant: Literal["model3d", "mujoco"]
+    plant: PlantKind
     seed: int
     position_noise_std: float
     max_time: float
@@ -284,7 +285,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
     )
     sim = top.sub("simulation", {})
     sim.check_keys({"plant", "seed", "position_noise_std", "max_time", "plant_params"})
-    plant = sim.choice("plant", ("model3d", "mujoco"), "model3d")
+    plant = sim.choice("plant", PLANT_KINDS, "model3d")
     plant_factors = _plant_factors(sim)
     noise = sim.number("position_noise_std", 0.0, minimum=0.0, maximum=MAX_NOISE_STD_M, unit="m")
     seed = sim.integer("seed", 0, maximum=2**32 - 1)

@@ -16,7 +16,7 @@ import enum
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -25,6 +25,7 @@ from gracenav.control import CONTROL_RATE, ControllerGains, design_gains
 from gracenav.errors import ConfigError
 from gracenav.model.friction import friction_constants
 from gracenav.params import BallbotParams
+from gracenav.sim.plant import PLANT_KINDS, PlantKind
 
 if TYPE_CHECKING:
     from gracenav.policies import MotionPolicy
@@ -49,7 +50,6 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
-Plant = Literal["model3d", "mujoco"]
 
 
 DEFAULT_FALL_LEAN = math.radians(20.0)
@@ -460,7 +460,7 @@ def simulate(
     gains: ControllerGains | None = None,
     *,
     params: BallbotParams | None = None,
-    plant: Plant = "model3d",
+    plant: PlantKind = "model3d",
     disturbances: Sequence[Disturbance] = (),
     options: SimulationOptions | None = None,
     monitor: tuple[FloatArray, FloatArray] | None = None,
@@ -497,12 +497,12 @@ def simulate(
     gains = gains if gains is not None else design_gains(params)
     plant_params = params if params is not None else gains.params
     options = options if options is not None else SimulationOptions()
+    if plant not in PLANT_KINDS:
+        raise ConfigError(f"plant must be {' or '.join(map(repr, PLANT_KINDS))}, got {plant!r}")
     if plant == "mujoco":
         return _simulate_mujoco(
             x, reference, gains, plant_params, disturbances, options, monitor, stop_on_exit
         )
-    if plant != "model3d":
-        raise ConfigError(f"plant must be 'model3d' or 'mujoco', got {plant!r}")
     states, inputs, summary, _ = _run_kernel(
         x[None], reference, gains, plant_params, disturbances, options, monitor, stop_on_exit, True
     )
@@ -652,7 +652,7 @@ def _simulate_mujoco(
 def run_policy(
     policy: MotionPolicy,
     p0: ArrayLike,
-    plant: Plant = "model3d",
+    plant: PlantKind = "model3d",
     *,
     params: BallbotParams | None = None,
     disturbances: Sequence[Disturbance] = (),
