@@ -56,6 +56,7 @@ from gracenav._io import atomic_write_text, load_document
 from gracenav._validate import Fields, require_mapping
 from gracenav.control import CONTROL_RATE
 from gracenav.errors import ConfigError
+from gracenav.graph import CostCriterion, CostName
 from gracenav.library import DEFAULT_SPEED_CLEARANCE, MAX_SPEED_CLEARANCE
 from gracenav.params import BallbotParams
 from gracenav.replanning import ObstacleSensing
@@ -140,7 +141,7 @@ class Scenario:
     name: str
     map_source: dict[str, Any] | Path
     footprint_radius: float
-    cost: Literal["time", "distance"]
+    cost: CostName
     max_halvings: int
     kind: Literal["point_to_point", "surveillance"]
     goals: tuple[tuple[float, ...], ...]
@@ -271,7 +272,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         }
     )
     planner_kind = planner.choice("kind", PLANNERS, "gracenav")
-    cost = planner.choice("cost", ("time", "distance"), "time")
+    cost = planner.choice("cost", [c.value for c in CostCriterion], "time")
     halvings = planner.integer("max_halvings", 1, maximum=20)
     resume = planner.boolean("resume_from_balancing", True)
     capture = planner.boolean("capture", True)
