@@ -43,6 +43,7 @@ from gracenav.execution import EventReason, ExecutionOptions, HybridController
 from gracenav.graph import build_graph
 from gracenav.library import DEFAULT_SPEED_CLEARANCE, build_library
 from gracenav.palette import load_palette
+from gracenav.sim.plant import PLANT_KINDS, PlantKind
 from gracenav.simulate import Push, state_from_position
 from gracenav.world import load_map
 
@@ -55,7 +56,7 @@ BINS = (0.0, 4.0, 8.0, 12.0, 16.0)
 
 _robot: HybridController | None = None
 _resume = False
-_plant = "model3d"
+_plant: PlantKind = "model3d"
 
 
 @dataclass(frozen=True)
@@ -73,7 +74,7 @@ class Outcome:
 
 
 def _init(
-    resume: bool, speed_clearance: float = DEFAULT_SPEED_CLEARANCE, plant: str = "model3d"
+    resume: bool, speed_clearance: float = DEFAULT_SPEED_CLEARANCE, plant: PlantKind = "model3d"
 ) -> None:
     global _robot, _resume, _plant
     pal = load_palette()
@@ -143,7 +144,7 @@ def main() -> None:
     )
     ap.add_argument(
         "--plant",
-        choices=("model3d", "mujoco"),
+        choices=PLANT_KINDS,
         default="model3d",
         help="simulated robot (default model3d; mujoco: the same robot in MuJoCo, about "
         "10 s per run)",

@@ -14,9 +14,10 @@ import numba
 import numpy as np
 import pytest
 
-from gracenav import BallbotParams
+from gracenav import BallbotParams, _kernels
 from gracenav.model import Ballbot3D, PlanarBallbot
 from gracenav.model import _ballbot3d_generated as gen
+from gracenav.model.friction import friction_constants, friction_torque
 
 ROOT = Path(__file__).resolve().parents[1]
 PARAMS = BallbotParams()
@@ -455,6 +456,22 @@ def test_numba_compiled_functions_agree_with_numpy_batch(compiled: dict[str, Any
     e_batch = gen.energy(C, qb, qdb)
     e_single = np.array([compiled["energy"](C, q[k], qd[k]) for k in range(n)])
     np.testing.assert_allclose(e_single, e_batch, rtol=1e-13)
+
+
+def test_one_friction_law_for_models_and_kernels() -> None:
+    """D_c tanh(θ̇/ε) + D_v θ̇ in that order, from gracenav.model.friction: the models'
+    numpy friction and the kernels' compiled one."""
+    p = BallbotParams(coulomb_friction=2.5, viscous_friction=1.5, friction_smoothing=0.02)
+    fr = friction_constants(p)
+    np.testing.assert_array_equal(fr, [2.5, 1.5, 0.02])
+    thd = np.random.default_rng(3).uniform(-2.0, 2.0, (40, 2))
+    want = p.coulomb_friction * np.tanh(thd / p.friction_smoothing) + p.viscous_friction * thd
+    np.testing.assert_array_equal(friction_torque(fr, thd), want)
+    qd = np.concatenate([thd, np.zeros((40, 2))], axis=1)
+    np.testing.assert_array_equal(Ballbot3D(p).friction(qd), want)
+    np.testing.assert_array_equal(PlanarBallbot(p, "y").friction(qd[:, 1::2]), want[:, 1])
+    compiled = np.array([[_kernels.friction(fr, v) for v in row] for row in thd])
+    np.testing.assert_allclose(compiled, want, rtol=1e-15, atol=1e-15)
 
 
 def test_class_methods_accept_any_leading_shape() -> None:

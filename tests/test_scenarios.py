@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import copy
 import json
+import typing
 from importlib import resources
 from pathlib import Path
 
@@ -12,10 +13,12 @@ import numpy as np
 import pytest
 import yaml
 
-from gracenav import ConfigError, PlanningError
+from gracenav import ConfigError, PlanningError, planning
 from gracenav.cli import main
 from gracenav.execution import EventReason, ExecutionOptions, HybridController, TaskStatus
+from gracenav.graph import CostCriterion, CostName
 from gracenav.scenarios import load_scenario, parse_scenario, run_scenario, write_outputs
+from gracenav.sim.plant import PLANT_KINDS, PlantKind
 from gracenav.simulate import state_from_position
 
 SCENARIOS = Path(str(resources.files("gracenav") / "data" / "scenarios"))
@@ -168,6 +171,22 @@ def test_bad_scenarios_name_the_key(patch: dict, message: str) -> None:
             data[k] = v
     with pytest.raises(ConfigError, match=message.replace("[", r"\[").replace("]", r"\]")):
         parse_scenario(data, source="bad.yaml")
+
+
+def test_plant_kinds_and_cost_criteria_have_one_home() -> None:
+    """The scenario's simulation.plant and planner.cost take the values of
+    gracenav.sim.plant.PLANT_KINDS and gracenav.graph.CostCriterion, whose string
+    types list the same values; planning's CostCriterion is the graph's."""
+    assert typing.get_args(PlantKind) == PLANT_KINDS
+    assert typing.get_args(CostName) == tuple(c.value for c in CostCriterion)
+    assert planning.CostCriterion is CostCriterion
+    data = yaml.safe_load((SCENARIOS / "fig5_point_to_point.yaml").read_text())
+    for kind in PLANT_KINDS:
+        data["simulation"] = {"plant": kind}
+        assert parse_scenario(copy.deepcopy(data)).plant == kind
+    for c in CostCriterion:
+        data["planner"]["cost"] = c.value
+        assert parse_scenario(copy.deepcopy(data)).cost == c.value
 
 
 def test_bad_scenario_files(tmp_path, capsys) -> None:

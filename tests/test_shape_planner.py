@@ -9,6 +9,7 @@ import pytest
 import scipy.linalg
 from scipy.optimize import linprog
 
+from gracenav._hermite import QUINTIC_HERMITE, quintic_hermite, quintic_hermite_basis
 from gracenav.errors import ConfigError
 from gracenav.model.ballbot3d import Ballbot3D
 from gracenav.model.planar import PlanarBallbot
@@ -368,6 +369,28 @@ def test_peak_lean_and_torque_are_reported_from_the_trajectory(
     # 1 m rest-to-rest in 3.875 s: about 4.2° and 33 N m (mostly friction)
     assert math.degrees(res.peak_lean) == pytest.approx(4.24, abs=0.05)
     assert 25.0 < res.peak_torque < 40.0
+
+
+def test_quintic_hermite_table_and_interpolation_are_one_basis() -> None:
+    """The basis table the stored primitives are rebuilt with and the interpolation of
+    the ball angles evaluate the same polynomials, which reproduce any quintic."""
+    s = np.linspace(0.0, 1.0, 37)
+    table = quintic_hermite_basis(s)
+    for k in range(6):
+        e = np.zeros(6)
+        e[k] = 1.0  # (p0, p0', p0'', p1, p1', p1'') on one interval of length 1
+        val, rate = quintic_hermite(s, 1.0, e[[0, 3], None], e[[1, 4], None], e[[2, 5], None])
+        np.testing.assert_allclose(val[:, 0], table[0, :, k], rtol=0, atol=1e-14)
+        np.testing.assert_allclose(rate[:, 0], table[1, :, k], rtol=0, atol=1e-13)
+        np.testing.assert_allclose(table[0, :, k], np.polyval(QUINTIC_HERMITE[k, ::-1], s))
+    poly = np.polynomial.Polynomial([0.3, -1.0, 0.7, 2.0, -1.5, 0.4])
+    h = 0.125
+    nodes = np.arange(9) * h
+    y = np.stack([poly.deriv(m)(nodes) for m in range(3)])[..., None]
+    t = np.linspace(0.0, nodes[-1], 101)
+    val, rate = quintic_hermite(t, h, y[0], y[1], y[2])
+    np.testing.assert_allclose(val[:, 0], poly(t), rtol=0, atol=1e-13)
+    np.testing.assert_allclose(rate[:, 0], poly.deriv()(t), rtol=0, atol=1e-12)
 
 
 # -- failure paths ---------------------------------------------------------------------

@@ -10,8 +10,9 @@ fall, instead of raising inside compiled code.
 
 Array conventions: state x = [θ_x, θ_y, φ_x, φ_y, θ̇_x, θ̇_y, φ̇_x, φ̇_y];
 model constants ``c`` as ``Ballbot3D.constants()``; friction constants
-``fr = [D_c, D_v, ε]``; controller gains ``k`` (2, 4) with rows
-[k_p, k_v, k_φ, k_φ̇] per plane (see :class:`gracenav.control.ControllerGains`).
+``fr = [D_c, D_v, ε]`` (:func:`gracenav.model.friction.friction_constants`); controller
+gains ``k`` (2, 4) with rows [k_p, k_v, k_φ, k_φ̇] per plane (see
+:class:`gracenav.control.ControllerGains`).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import numpy as np
 from numba import njit
 
 from gracenav.model import _ballbot3d_generated as _gen
+from gracenav.model.friction import friction_torque
 
 __all__ = [
     "closed_loop",
@@ -33,12 +35,8 @@ mass_matrix = njit(cache=True, error_model="numpy")(_gen.mass_matrix)
 bias = njit(cache=True, error_model="numpy")(_gen.bias)
 com_jacobian = njit(cache=True, error_model="numpy")(_gen.com_jacobian)
 com_position = njit(cache=True, error_model="numpy")(_gen.com_position)
-
-
-@njit(cache=True, error_model="numpy")
-def friction(fr, thd):
-    """Smooth friction torque D_c tanh(θ̇/ε) + D_v θ̇ (N m)."""
-    return fr[0] * np.tanh(thd / fr[2]) + fr[1] * thd
+#: Smooth friction torque D_c tanh(θ̇/ε) + D_v θ̇ (N m) of one relative ball rate.
+friction = njit(cache=True, error_model="numpy")(friction_torque)
 
 
 @njit(cache=True, error_model="numpy")
@@ -96,7 +94,8 @@ def rebuild_fine(cstates, cacc, cfirst, ffirst, intervals, basis, h, c, fr, r, s
     :func:`inverse_dynamics`) and ``pos`` (·, 6: ball position, velocity and
     acceleration, r (θ + φ) and its derivatives). Between coarse samples q, q̇, q̈ come
     from the quintic Hermite interpolant with ``basis`` (3, stride, 6) (values, first and
-    second derivatives in the unit interval); ``h`` is the coarse step (s)."""
+    second derivatives in the unit interval, :func:`gracenav._hermite.quintic_hermite_basis`);
+    ``h`` is the coarse step (s)."""
     stride = basis.shape[1]
     wm = np.empty((4, 4))
     wh = np.empty(4)

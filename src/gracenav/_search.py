@@ -681,6 +681,80 @@ def _gauge(dx: Any, dy: Any, h_x: Any, h_y: Any) -> float:
     return h
 
 
+# The A* searches below keep their open set in a binary heap of entries (f, -g, row) in
+# three arrays ``hf``, ``hg``, ``hn`` with lazy deletion (an entry whose g is no longer
+# the row's is skipped when popped).
+@njit(cache=True, nogil=True, inline="always")
+def _before(f1: Any, g1: Any, n1: Any, f2: Any, g2: Any, n2: Any) -> bool:
+    """Heap order of two entries (f, -g, row): lower f, then deeper, then lower row."""
+    return f1 < f2 or (f1 == f2 and (g1 < g2 or (g1 == g2 and n1 < n2)))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _sift_down(hf: Any, hg: Any, hn: Any, p: Any, size: Any) -> None:
+    vf = hf[p]
+    vg = hg[p]
+    vn = hn[p]
+    while True:
+        c = 2 * p + 1
+        if c >= size:
+            break
+        if c + 1 < size and _before(hf[c + 1], hg[c + 1], hn[c + 1], hf[c], hg[c], hn[c]):
+            c += 1
+        if _before(hf[c], hg[c], hn[c], vf, vg, vn):
+            hf[p] = hf[c]
+            hg[p] = hg[c]
+            hn[p] = hn[c]
+            p = c
+        else:
+            break
+    hf[p] = vf
+    hg[p] = vg
+    hn[p] = vn
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _pop(hf: Any, hg: Any, hn: Any, size: Any) -> Any:
+    """Remove the first entry of the heap of ``size`` entries; returns the new size."""
+    size -= 1
+    if size > 0:
+        hf[0] = hf[size]
+        hg[0] = hg[size]
+        hn[0] = hn[size]
+        _sift_down(hf, hg, hn, 0, size)
+    return size
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _push(hf: Any, hg: Any, hn: Any, size: Any, f: Any, g: Any, n: Any) -> Any:
+    """Add the entry (f, g, n) to the heap of ``size`` entries, in arrays of twice the
+    length when they are full; returns (hf, hg, hn, size + 1)."""
+    cap = hf.size
+    if size == cap:
+        cap *= 2
+        hf2 = np.empty(cap, np.float64)
+        hg2 = np.empty(cap, np.float64)
+        hn2 = np.empty(cap, np.int64)
+        hf2[:size] = hf[:size]
+        hg2[:size] = hg[:size]
+        hn2[:size] = hn[:size]
+        hf, hg, hn = hf2, hg2, hn2
+    p = size
+    while p > 0:
+        q = (p - 1) >> 1
+        if _before(f, g, n, hf[q], hg[q], hn[q]):
+            hf[p] = hf[q]
+            hg[p] = hg[q]
+            hn[p] = hn[q]
+            p = q
+        else:
+            break
+    hf[p] = f
+    hg[p] = g
+    hn[p] = n
+    return hf, hg, hn, size + 1
+
+
 @njit(cache=True, nogil=True)
 def _astar(
     starts: Any,
@@ -728,10 +802,9 @@ def _astar(
     closed = np.zeros(n, np.bool_)
     gy = row_point[goal] // nx
     gx = row_point[goal] - gy * nx
-    cap = 1024
-    hf = np.empty(cap, np.float64)
-    hg = np.empty(cap, np.float64)
-    hn = np.empty(cap, np.int64)
+    hf = np.empty(1024, np.float64)
+    hg = np.empty(1024, np.float64)
+    hn = np.empty(1024, np.int64)
     size = 0
     buf = np.empty(max(succ_type.size, 1), np.int64)
     for s in starts:
@@ -741,61 +814,12 @@ def _astar(
         py = row_point[s] // nx
         px = row_point[s] - py * nx
         f = _gauge(gx - px, gy - py, h_x, h_y)
-        if size == cap:
-            cap *= 2
-            hf2 = np.empty(cap, np.float64)
-            hg2 = np.empty(cap, np.float64)
-            hn2 = np.empty(cap, np.int64)
-            hf2[:size] = hf[:size]
-            hg2[:size] = hg[:size]
-            hn2[:size] = hn[:size]
-            hf, hg, hn = hf2, hg2, hn2
-        p = size
-        size += 1
-        while p > 0:
-            q = (p - 1) >> 1
-            if hf[q] > f or (hf[q] == f and (hg[q] > 0.0 or (hg[q] == 0.0 and hn[q] > s))):
-                hf[p] = hf[q]
-                hg[p] = hg[q]
-                hn[p] = hn[q]
-                p = q
-            else:
-                break
-        hf[p] = f
-        hg[p] = 0.0
-        hn[p] = s
+        hf, hg, hn, size = _push(hf, hg, hn, size, f, 0.0, s)
     expanded = 0
     while size > 0:
         i = hn[0]
         gi = -hg[0]
-        size -= 1
-        if size > 0:
-            vf = hf[size]
-            vg = hg[size]
-            vn = hn[size]
-            p = 0
-            while True:
-                c = 2 * p + 1
-                if c >= size:
-                    break
-                if c + 1 < size and (
-                    hf[c + 1] < hf[c]
-                    or (
-                        hf[c + 1] == hf[c]
-                        and (hg[c + 1] < hg[c] or (hg[c + 1] == hg[c] and hn[c + 1] < hn[c]))
-                    )
-                ):
-                    c += 1
-                if hf[c] < vf or (hf[c] == vf and (hg[c] < vg or (hg[c] == vg and hn[c] < vn))):
-                    hf[p] = hf[c]
-                    hg[p] = hg[c]
-                    hn[p] = hn[c]
-                    p = c
-                else:
-                    break
-            hf[p] = vf
-            hg[p] = vg
-            hn[p] = vn
+        size = _pop(hf, hg, hn, size)
         if i < 0:  # a queued join: no open policy can do better
             return _DONE, expanded, join_rows[-i - 1]
         if closed[i] or gi > g_cost[i]:
@@ -807,29 +831,7 @@ def _astar(
             if join_cost[k] == 0.0:
                 return _DONE, expanded, i
             d = gi + join_cost[k]
-            if size == cap:
-                cap *= 2
-                hf2 = np.empty(cap, np.float64)
-                hg2 = np.empty(cap, np.float64)
-                hn2 = np.empty(cap, np.int64)
-                hf2[:size] = hf[:size]
-                hg2[:size] = hg[:size]
-                hn2[:size] = hn[:size]
-                hf, hg, hn = hf2, hg2, hn2
-            p = size
-            size += 1
-            while p > 0:
-                q = (p - 1) >> 1
-                if hf[q] > d or (hf[q] == d and (hg[q] > -d or (hg[q] == -d and hn[q] > -k - 1))):
-                    hf[p] = hf[q]
-                    hg[p] = hg[q]
-                    hn[p] = hn[q]
-                    p = q
-                else:
-                    break
-            hf[p] = d
-            hg[p] = -d
-            hn[p] = -k - 1
+            hf, hg, hn, size = _push(hf, hg, hn, size, d, -d, -k - 1)
             continue
         w = type_cost[row_type[i]]
         if not w >= 0.0:
@@ -859,66 +861,15 @@ def _astar(
                 py = row_point[j] // nx
                 px = row_point[j] - py * nx
                 f = d + _gauge(gx - px, gy - py, h_x, h_y)
-                if size == cap:
-                    cap *= 2
-                    hf2 = np.empty(cap, np.float64)
-                    hg2 = np.empty(cap, np.float64)
-                    hn2 = np.empty(cap, np.int64)
-                    hf2[:size] = hf[:size]
-                    hg2[:size] = hg[:size]
-                    hn2[:size] = hn[:size]
-                    hf, hg, hn = hf2, hg2, hn2
-                p = size
-                size += 1
-                while p > 0:
-                    q = (p - 1) >> 1
-                    if hf[q] > f or (hf[q] == f and (hg[q] > -d or (hg[q] == -d and hn[q] > j))):
-                        hf[p] = hf[q]
-                        hg[p] = hg[q]
-                        hn[p] = hn[q]
-                        p = q
-                    else:
-                        break
-                hf[p] = f
-                hg[p] = -d
-                hn[p] = j
+                hf, hg, hn, size = _push(hf, hg, hn, size, f, -d, j)
     return _DONE, expanded, -1
 
 
 # The resumable goal-directed tree (gracenav.planning.LazyPolicyTree): a backward A*
 # from the goal over the predecessors, whose state (tentative and final costs, next
 # policies, closed flags and the open heap) lives in arrays the caller keeps between
-# calls. Heap entries are (f, -g, row) with lazy deletion, as in _astar.
+# calls; the open heap is that of _astar (_push, _pop).
 _BUDGET = 4  # status: the expansion budget of the call ran out
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _before(f1: Any, g1: Any, n1: Any, f2: Any, g2: Any, n2: Any) -> bool:
-    """Heap order of two entries (f, -g, row): lower f, then deeper, then lower row."""
-    return f1 < f2 or (f1 == f2 and (g1 < g2 or (g1 == g2 and n1 < n2)))
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _sift_down(hf: Any, hg: Any, hn: Any, p: Any, size: Any) -> None:
-    vf = hf[p]
-    vg = hg[p]
-    vn = hn[p]
-    while True:
-        c = 2 * p + 1
-        if c >= size:
-            break
-        if c + 1 < size and _before(hf[c + 1], hg[c + 1], hn[c + 1], hf[c], hg[c], hn[c]):
-            c += 1
-        if _before(hf[c], hg[c], hn[c], vf, vg, vn):
-            hf[p] = hf[c]
-            hg[p] = hg[c]
-            hn[p] = hn[c]
-            p = c
-        else:
-            break
-    hf[p] = vf
-    hg[p] = vg
-    hn[p] = vn
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -1024,7 +975,6 @@ def _lazy_settle(
         buf_i, buf_w = _buffers(pred_ptr)
     else:
         buf_i, buf_w = np.empty(1, np.int64), np.empty(1, np.float64)
-    cap = hf.size
     expanded = 0
     status = _DONE
     while size > 0:
@@ -1035,12 +985,7 @@ def _lazy_settle(
             break
         i = hn[0]
         gi = -hg[0]
-        size -= 1
-        if size > 0:
-            hf[0] = hf[size]
-            hg[0] = hg[size]
-            hn[0] = hn[size]
-            _sift_down(hf, hg, hn, 0, size)
+        size = _pop(hf, hg, hn, size)
         if closed[i] or gi > g[i]:
             continue
         closed[i] = True
@@ -1101,29 +1046,7 @@ def _lazy_settle(
                 g[u] = d
                 parent[u] = i
                 f = d + _query_gauge(u, cx, cy, radius, row_point, nx, h_x, h_y)
-                if size == cap:
-                    cap *= 2
-                    hf2 = np.empty(cap, np.float64)
-                    hg2 = np.empty(cap, np.float64)
-                    hn2 = np.empty(cap, np.int64)
-                    hf2[:size] = hf[:size]
-                    hg2[:size] = hg[:size]
-                    hn2[:size] = hn[:size]
-                    hf, hg, hn = hf2, hg2, hn2
-                p = size
-                size += 1
-                while p > 0:
-                    q = (p - 1) >> 1
-                    if _before(f, -d, u, hf[q], hg[q], hn[q]):
-                        hf[p] = hf[q]
-                        hg[p] = hg[q]
-                        hn[p] = hn[q]
-                        p = q
-                    else:
-                        break
-                hf[p] = f
-                hg[p] = -d
-                hn[p] = u
+                hf, hg, hn, size = _push(hf, hg, hn, size, f, -d, u)
         if status == _NEGATIVE or (queries.size > 0 and remaining == 0):
             break  # (a row is closed only with its predecessors relaxed)
     for q in queries:

@@ -31,7 +31,8 @@ built from them on first use. On a 100 m open hall this is the difference betwee
 
 Edge costs: entry (i, j) of the adjacency matrix is the cost of *executing policy i*
 (then switching to j): its duration t_f (s) for the fastest-time criterion, or the
-XY length of its reference path (m) for the shortest-path criterion. The
+XY length of its reference path (m) for the shortest-path criterion
+(:class:`CostCriterion`, by value :data:`CostName`). The
 shortest-path distance from i to a goal node is then the cost-to-go of starting
 policy i, not counting the goal policy itself. Rest trims have zero path length, so
 distance graphs hold explicit zero entries (which :mod:`scipy.sparse.csgraph` treats
@@ -41,6 +42,7 @@ as edges).
 from __future__ import annotations
 
 import dataclasses
+import enum
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -54,6 +56,7 @@ from gracenav.library import InstantiatedPolicy, PolicyLibrary
 
 __all__ = [
     "STORED_EDGES",
+    "CostCriterion",
     "CostName",
     "LatticeEdges",
     "PreparesGraph",
@@ -66,8 +69,18 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
 
+
+class CostCriterion(enum.Enum):
+    """Optimality criterion of the trees: what executing a policy costs."""
+
+    TIME = "time"
+    DISTANCE = "distance"
+
+
+#: A :class:`CostCriterion` by its value, as the graph's methods and scenario files take it.
 CostName = Literal["time", "distance"]
-_COSTS = ("time", "distance")
+_COSTS = tuple(c.value for c in CostCriterion)
+
 #: Default absolute tolerance of state continuity (m, m/s, m/s², rad, rad/s).
 DEFAULT_ATOL = 1e-6
 #: Largest (type, point) lookup table (int32 entries) kept with the implicit edges.

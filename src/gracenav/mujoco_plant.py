@@ -63,6 +63,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from gracenav.control import CONTROL_RATE
 from gracenav.errors import ConfigError
+from gracenav.model.friction import friction_constants, friction_torque
 from gracenav.params import BallbotParams
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -463,8 +464,8 @@ class MujocoBallbot:
 
     # -- forces ------------------------------------------------------------------
     def _friction(self, thd: FloatArray) -> FloatArray:
-        p = self.params
-        return p.coulomb_friction * np.tanh(thd / p.friction_smoothing) + p.viscous_friction * thd
+        out: FloatArray = friction_torque(friction_constants(self.params), thd)
+        return out
 
     def _apply_inputs(
         self, data: mujoco.MjData, x: FloatArray, tau: FloatArray, body_force: FloatArray | None

@@ -45,7 +45,6 @@ before ``i``, which keeps the tree acyclic.
 
 from __future__ import annotations
 
-import enum
 from dataclasses import dataclass
 from typing import Any
 
@@ -67,7 +66,7 @@ from gracenav._search import (
     _search_queues_lattice,
 )
 from gracenav.errors import ConfigError, PlanningError
-from gracenav.graph import PreparesGraph
+from gracenav.graph import CostCriterion, PreparesGraph
 
 __all__ = [
     "CostCriterion",
@@ -80,13 +79,6 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
-
-
-class CostCriterion(enum.Enum):
-    """Optimality criterion of the tree."""
-
-    TIME = "time"
-    DISTANCE = "distance"
 
 
 @dataclass(frozen=True)

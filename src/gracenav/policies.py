@@ -290,9 +290,9 @@ class SampledPrimitive:
         """Rebuild the samples at every tick from every ``stride``-th one.
 
         q, q̇ and q̈ between stored ticks come from the quintic Hermite interpolant
-        of (q, q̇, q̈) at both ends (error ~h⁶ q⁽⁶⁾, below 1e-10 rad for these smooth
-        trajectories); the torques are recomputed from the 3D equations of motion so
-        the rebuilt samples satisfy them. See :meth:`from_coarse_many`.
+        (:mod:`gracenav._hermite`) of (q, q̇, q̈) at both ends (error ~h⁶ q⁽⁶⁾, below
+        1e-10 rad for these smooth trajectories); the torques are recomputed from the 3D
+        equations of motion so the rebuilt samples satisfy them. See :meth:`from_coarse_many`.
         """
         meta = {
             "name": name,
@@ -317,8 +317,10 @@ class SampledPrimitive:
         ``items``: (states, accelerations, stride, meta) with ``meta`` holding the
         keyword arguments name, kind, dt, displacement, start_velocity, end_velocity.
         """
+        from gracenav._hermite import quintic_hermite_basis
         from gracenav._kernels import rebuild_fine
         from gracenav.model.ballbot3d import Ballbot3D
+        from gracenav.model.friction import friction_constants
 
         intervals = np.array([it[0].shape[0] - 1 for it in items], dtype=np.int64)
         strides = np.array([int(it[2]) for it in items], dtype=np.int64)
@@ -330,7 +332,7 @@ class SampledPrimitive:
         tau = np.empty((total, 2))
         pos = np.empty((total, 6))
         c = Ballbot3D(params).constants()
-        fr = np.array([params.coulomb_friction, params.viscous_friction, params.friction_smoothing])
+        fr = friction_constants(params)
         by_step: dict[tuple[int, float], list[int]] = {}
         for k, (_, _, stride, meta) in enumerate(items):
             by_step.setdefault((int(stride), float(meta["dt"])), []).append(k)
@@ -343,7 +345,7 @@ class SampledPrimitive:
                 cfirst.astype(np.int64),
                 ffirst[ks],
                 intervals[ks],
-                np.ascontiguousarray(_quintic_hermite(np.arange(stride) / stride)),
+                np.ascontiguousarray(quintic_hermite_basis(np.arange(stride) / stride)),
                 stride * dt,
                 c,
                 fr,
@@ -379,28 +381,6 @@ class SampledPrimitive:
         b = self.position[np.minimum(i + 1, self.num_ticks), :4]
         out: FloatArray = (1.0 - w) * a + w * b
         return out
-
-
-def _quintic_hermite(s: FloatArray) -> FloatArray:
-    """Quintic Hermite basis on [0, 1] for (p0, p0', p0'', p1, p1', p1''): values, first and
-    second derivatives at ``s``; shape (3, len(s), 6)."""
-    c = np.array(
-        [
-            [1, 0, 0, -10, 15, -6],
-            [0, 1, 0, -6, 8, -3],
-            [0, 0, 0.5, -1.5, 1.5, -0.5],
-            [0, 0, 0, 10, -15, 6],
-            [0, 0, 0, -4, 7, -3],
-            [0, 0, 0, 0.5, -1, 0.5],
-        ]
-    )  # row: basis function, column: power of s
-    powers = np.arange(6)
-    sp = s[:, None] ** powers[None, :]
-    d1 = np.zeros_like(sp)
-    d1[:, 1:] = powers[1:] * s[:, None] ** (powers[1:] - 1)
-    d2 = np.zeros_like(sp)
-    d2[:, 2:] = powers[2:] * (powers[2:] - 1) * s[:, None] ** (powers[2:] - 2)
-    return np.stack([sp @ c.T, d1 @ c.T, d2 @ c.T])
 
 
 @dataclass(frozen=True)

@@ -46,6 +46,7 @@ from numpy.typing import ArrayLike, NDArray
 from gracenav._cache import cache_dir
 from gracenav._io import atomic_write_bytes
 from gracenav.errors import CacheError, ConfigError
+from gracenav.model.friction import friction_constants, friction_torque
 from gracenav.params import BallbotParams
 from gracenav.shape_planner import (
     NonicReference,
@@ -242,8 +243,7 @@ class TrimPrimitive(MotionPrimitive):
         states[:, 0:2] = t[:, None] * v / r
         states[:, 4:6] = v / r
         p = self.params
-        fr = p.coulomb_friction * np.tanh(states[:, 4:6] / p.friction_smoothing)
-        inputs = fr + p.viscous_friction * states[:, 4:6]
+        inputs = friction_torque(friction_constants(p), states[:, 4:6])
         position = np.zeros((n, 6))
         position[:, 0:2] = t[:, None] * v
         position[:, 2:4] = v
@@ -567,6 +567,8 @@ def _linear_estimate(ref: NonicReference, params: BallbotParams) -> tuple[float,
     ph, phd, phdd = ydd / kappa, y3 / kappa, y4 / kappa
     thd = (yd - lengths * phd) / r - phd
     thdd = (ydd - lengths * phdd) / r - phdd
+    # The friction law of gracenav.model.friction written out: its two terms enter this
+    # sum one by one, and friction_torque's own sum would round differently.
     fric = params.coulomb_friction * np.tanh(thd / params.friction_smoothing)
     tau = alpha * thdd + (alpha + beta) * phdd + fric + params.viscous_friction * thd
     return float(np.max(np.hypot(ph[:, 0], ph[:, 1]))), float(np.max(np.abs(tau)))

@@ -56,9 +56,11 @@ from gracenav._io import atomic_write_text, load_document
 from gracenav._validate import Fields, require_mapping
 from gracenav.control import CONTROL_RATE
 from gracenav.errors import ConfigError
+from gracenav.graph import CostCriterion, CostName
 from gracenav.library import DEFAULT_SPEED_CLEARANCE, MAX_SPEED_CLEARANCE
 from gracenav.params import BallbotParams
 from gracenav.replanning import ObstacleSensing
+from gracenav.sim.plant import PLANT_KINDS, PlantKind
 from gracenav.simulate import Disturbance, Drag, Push, SimulationOptions
 from gracenav.world.moving import MovingObstacle, moving_clearance
 
@@ -139,14 +141,14 @@ class Scenario:
     name: str
     map_source: dict[str, Any] | Path
     footprint_radius: float
-    cost: Literal["time", "distance"]
+    cost: CostName
     max_halvings: int
     kind: Literal["point_to_point", "surveillance"]
     goals: tuple[tuple[float, ...], ...]
     starts: tuple[tuple[float, ...], ...]
     loops: int
     disturbances: tuple[Disturbance, ...]
-    plant: Literal["model3d", "mujoco"]
+    plant: PlantKind
     seed: int
     position_noise_std: float
     max_time: float
@@ -270,7 +272,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         }
     )
     planner_kind = planner.choice("kind", PLANNERS, "gracenav")
-    cost = planner.choice("cost", ("time", "distance"), "time")
+    cost = planner.choice("cost", [c.value for c in CostCriterion], "time")
     halvings = planner.integer("max_halvings", 1, maximum=20)
     resume = planner.boolean("resume_from_balancing", True)
     capture = planner.boolean("capture", True)
@@ -284,7 +286,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
     )
     sim = top.sub("simulation", {})
     sim.check_keys({"plant", "seed", "position_noise_std", "max_time", "plant_params"})
-    plant = sim.choice("plant", ("model3d", "mujoco"), "model3d")
+    plant = sim.choice("plant", PLANT_KINDS, "model3d")
     plant_factors = _plant_factors(sim)
     noise = sim.number("position_noise_std", 0.0, minimum=0.0, maximum=MAX_NOISE_STD_M, unit="m")
     seed = sim.integer("seed", 0, maximum=2**32 - 1)

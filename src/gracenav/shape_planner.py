@@ -55,10 +55,13 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import BSpline, PPoly
 
+from gracenav._hermite import quintic_hermite
 from gracenav._kernels import bias as _bias3
+from gracenav._kernels import friction as _friction
 from gracenav._kernels import mass_matrix as _mm3
 from gracenav.control import CONTROL_RATE
 from gracenav.errors import ConfigError
+from gracenav.model.friction import friction_constants
 from gracenav.model.planar import PlanarBallbot
 from gracenav.params import BallbotParams
 
@@ -454,10 +457,6 @@ def _model_constants(params: BallbotParams, kind: int) -> FloatArray:
     )
 
 
-def _friction_constants(params: BallbotParams) -> FloatArray:
-    return np.array([params.coulomb_friction, params.viscous_friction, params.friction_smoothing])
-
-
 # --------------------------------------------------------------------------------------
 # Compiled kernels
 # --------------------------------------------------------------------------------------
@@ -493,11 +492,6 @@ def _shape_accel(kind, c, q, qd, phdd, wm, wb, out):
                 )
             else:
                 out[i] = (beta * ph * g / r - (alpha + gam + 2.0 * beta) * phdd[i]) / (alpha + beta)
-
-
-@njit(cache=True)
-def _friction(fr, thd):
-    return fr[0] * np.tanh(thd / fr[2]) + fr[1] * thd
 
 
 @njit(cache=True)
@@ -695,38 +689,6 @@ class TrajectorySample:
     position: FloatArray
 
 
-def _hermite5(
-    t: FloatArray, h: float, y: FloatArray, yd: FloatArray, ydd: FloatArray
-) -> tuple[FloatArray, FloatArray]:
-    """Quintic Hermite interpolation of node values (N+1, 2) at times t; value and rate."""
-    n = y.shape[0] - 1
-    k = np.clip(np.floor(t / h).astype(np.int64), 0, max(n - 1, 0))
-    u = (t - k * h) / h
-    u = u[:, None]
-    p0, p1 = y[k], y[np.minimum(k + 1, n)]
-    v0, v1 = yd[k] * h, yd[np.minimum(k + 1, n)] * h
-    a0, a1 = ydd[k] * h * h, ydd[np.minimum(k + 1, n)] * h * h
-    u2 = u * u
-    u3 = u2 * u
-    u4 = u3 * u
-    u5 = u4 * u
-    h0 = 1 - 10 * u3 + 15 * u4 - 6 * u5
-    h1 = u - 6 * u3 + 8 * u4 - 3 * u5
-    h2 = 0.5 * (u2 - 3 * u3 + 3 * u4 - u5)
-    h3 = 0.5 * (u3 - 2 * u4 + u5)
-    h4 = -4 * u3 + 7 * u4 - 3 * u5
-    h5 = 10 * u3 - 15 * u4 + 6 * u5
-    d0 = -30 * u2 + 60 * u3 - 30 * u4
-    d1 = 1 - 18 * u2 + 32 * u3 - 15 * u4
-    d2 = 0.5 * (2 * u - 9 * u2 + 12 * u3 - 5 * u4)
-    d3 = 0.5 * (3 * u2 - 8 * u3 + 5 * u4)
-    d4 = -12 * u2 + 28 * u3 - 15 * u4
-    d5 = 30 * u2 - 60 * u3 + 30 * u4
-    val = h0 * p0 + h1 * v0 + h2 * a0 + h3 * a1 + h4 * v1 + h5 * p1
-    rate = (d0 * p0 + d1 * v0 + d2 * a0 + d3 * a1 + d4 * v1 + d5 * p1) / h
-    return val, rate
-
-
 @dataclass(frozen=True)
 class ShapeTrajectory:
     """A feasible state trajectory: lean B-splines plus the integrated ball angles.
@@ -798,7 +760,7 @@ class ShapeTrajectory:
                 f"sample times must lie in [0, {self.duration}] s, got [{t.min()}, {t.max()}]"
             )
         t = np.clip(t, 0.0, self.duration)
-        th, thd = _hermite5(t, self.step, self.theta, self.theta_dot, self.theta_ddot)
+        th, thd = quintic_hermite(t, self.step, self.theta, self.theta_dot, self.theta_ddot)
         ph = self.lean(t)
         phd = self.lean(t, 1)
         phdd = self.lean(t, 2)
@@ -810,7 +772,7 @@ class ShapeTrajectory:
         _inverse_dynamics(
             kind,
             _model_constants(self.params, kind),
-            _friction_constants(self.params),
+            friction_constants(self.params),
             q,
             qd,
             np.ascontiguousarray(phdd),
@@ -1094,7 +1056,7 @@ def _summarise(
     qd = np.ascontiguousarray(np.concatenate([thd, phd], axis=1))
     qdd = np.empty_like(q)
     tau = np.empty((n + 1, 2))
-    _inverse_dynamics(kind, c, _friction_constants(params), q, qd, phdd, qdd, tau)
+    _inverse_dynamics(kind, c, friction_constants(params), q, qd, phdd, qdd, tau)
     tilt = np.arccos(np.clip(np.cos(ph[:, 0]) * np.cos(ph[:, 1]), -1.0, 1.0))
     # Richardson estimate of the integration error: integrate with step 2h.
     integration_error = float("nan")

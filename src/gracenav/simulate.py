@@ -16,14 +16,16 @@ import enum
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from gracenav.control import CONTROL_RATE, ControllerGains, design_gains
 from gracenav.errors import ConfigError
+from gracenav.model.friction import friction_constants
 from gracenav.params import BallbotParams
+from gracenav.sim.plant import PLANT_KINDS, PlantKind
 
 if TYPE_CHECKING:
     from gracenav.policies import MotionPolicy
@@ -48,7 +50,6 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
-Plant = Literal["model3d", "mujoco"]
 
 
 DEFAULT_FALL_LEAN = math.radians(20.0)
@@ -357,10 +358,6 @@ def _disturbance_arrays(
     return force, impulse, jump, tether, gains
 
 
-def _friction_constants(params: BallbotParams) -> FloatArray:
-    return np.array([params.coulomb_friction, params.viscous_friction, params.friction_smoothing])
-
-
 def _model_constants(params: BallbotParams) -> FloatArray:
     from gracenav.model.ballbot3d import Ballbot3D
 
@@ -408,9 +405,9 @@ def _run_kernel(
     final = np.zeros((nb, 8))
     _kernels.closed_loop(
         _model_constants(plant_params),
-        _friction_constants(plant_params),
+        friction_constants(plant_params),
         _model_constants(gains.params),
-        _friction_constants(gains.params),
+        friction_constants(gains.params),
         gains.kernel_arrays(),
         gains.max_lean_compensation,
         gains.friction_compensation,
@@ -463,7 +460,7 @@ def simulate(
     gains: ControllerGains | None = None,
     *,
     params: BallbotParams | None = None,
-    plant: Plant = "model3d",
+    plant: PlantKind = "model3d",
     disturbances: Sequence[Disturbance] = (),
     options: SimulationOptions | None = None,
     monitor: tuple[FloatArray, FloatArray] | None = None,
@@ -500,12 +497,12 @@ def simulate(
     gains = gains if gains is not None else design_gains(params)
     plant_params = params if params is not None else gains.params
     options = options if options is not None else SimulationOptions()
+    if plant not in PLANT_KINDS:
+        raise ConfigError(f"plant must be {' or '.join(map(repr, PLANT_KINDS))}, got {plant!r}")
     if plant == "mujoco":
         return _simulate_mujoco(
             x, reference, gains, plant_params, disturbances, options, monitor, stop_on_exit
         )
-    if plant != "model3d":
-        raise ConfigError(f"plant must be 'model3d' or 'mujoco', got {plant!r}")
     states, inputs, summary, _ = _run_kernel(
         x[None], reference, gains, plant_params, disturbances, options, monitor, stop_on_exit, True
     )
@@ -583,7 +580,7 @@ def _simulate_mujoco(
     plant = MujocoBallbot(plant_params, timestep=dt / options.substeps)
     model = Ballbot3D(plant_params)
     plant.set_state(x0)
-    fr = _friction_constants(gains.params)
+    fr = friction_constants(gains.params)
     k = gains.kernel_arrays()
     r = gains.params.ball_radius
     states = np.zeros((nt + 1, 8))
@@ -655,7 +652,7 @@ def _simulate_mujoco(
 def run_policy(
     policy: MotionPolicy,
     p0: ArrayLike,
-    plant: Plant = "model3d",
+    plant: PlantKind = "model3d",
     *,
     params: BallbotParams | None = None,
     disturbances: Sequence[Disturbance] = (),

@@ -24,6 +24,7 @@ from gracenav.replanning import ReplanEvent
 if TYPE_CHECKING:
     from gracenav.control import ControllerGains
     from gracenav.execution import Episode
+    from gracenav.sim.plant import PlantKind
     from gracenav.simulate import Disturbance, Reference
     from gracenav.world import WorldMap
 
@@ -78,7 +79,7 @@ def track_decoupled(
     gains: ControllerGains,
     limits: MotionLimits,
     plant_params: BallbotParams | None = None,
-    plant: str = "model3d",
+    plant: PlantKind = "model3d",
     disturbances: Sequence[Disturbance] = (),
     max_time: float = 120.0,
     goal_tolerance: float = 0.05,
@@ -140,7 +141,7 @@ def track_decoupled(
         options=options,
     )
     robot = make_plant(
-        plant,  # type: ignore[arg-type]
+        plant,
         plant_params,
         substeps=sim.substeps,
         position_noise_std=sim.position_noise_std,

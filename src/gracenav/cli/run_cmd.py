@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from gracenav.cli._common import add_palette_argument, add_params_argument, check_plant
+from gracenav.sim.plant import PLANT_KINDS, PlantKind
 
 __all__ = ["register"]
 
@@ -41,7 +42,7 @@ def register(sub: Any) -> None:
     r.add_argument("--out", type=Path, required=True, help="output directory")
     r.add_argument(
         "--plant",
-        choices=("model3d", "mujoco"),
+        choices=PLANT_KINDS,
         default=None,
         help="override the scenario's simulated plant",
     )
@@ -68,7 +69,7 @@ def register(sub: Any) -> None:
 def _execute(
     scenario_path: Path,
     out: Path,
-    plant: str | None,
+    plant: PlantKind | None,
     animation: bool,
     params_path: Path | None,
     palette_path: Path | None = None,
@@ -82,7 +83,7 @@ def _execute(
 
     sc = load_scenario(scenario_path)
     if plant is not None:
-        sc = dataclasses.replace(sc, plant=plant)  # type: ignore[arg-type]
+        sc = dataclasses.replace(sc, plant=plant)
     check_plant(sc.plant, "--plant" if plant is not None else f"{sc.source}: simulation.plant")
     params = None if params_path is None else BallbotParams.load_overrides(params_path)
     from gracenav.palette import load_palette

@@ -11,6 +11,7 @@ import numpy as np
 
 from gracenav.cli._common import add_params_argument, check_plant, load_params, number
 from gracenav.errors import ConfigError
+from gracenav.sim.plant import PLANT_KINDS
 
 __all__ = ["register"]
 
@@ -67,9 +68,7 @@ def register(sub: Any) -> None:
         default=None,
         help=f"also push the body at t = 1 s with this impulse (N s, magnitude <= {MAX_PUSH_NS:g})",
     )
-    b.add_argument(
-        "--plant", choices=("model3d", "mujoco"), default="model3d", help="simulated plant"
-    )
+    b.add_argument("--plant", choices=PLANT_KINDS, default="model3d", help="simulated plant")
     b.add_argument("--out", type=Path, required=True, help="output directory")
     add_params_argument(b)
     b.set_defaults(func=run_balance)

@@ -71,10 +71,11 @@ class TrackingLaw:
 
     def __init__(self, gains: ControllerGains) -> None:
         from gracenav.model.ballbot3d import Ballbot3D
+        from gracenav.model.friction import friction_constants
 
         p = gains.params
         self.radius = float(Ballbot3D(p).constants()[0])
-        self.friction = np.array([p.coulomb_friction, p.viscous_friction, p.friction_smoothing])
+        self.friction = friction_constants(p)
         self.k = gains.kernel_arrays()
         self.max_comp = float(gains.max_lean_compensation)
         self.friction_comp = bool(gains.friction_compensation)

@@ -173,7 +173,9 @@ class ExecutionOptions:
 
     def __post_init__(self) -> None:
         if self.plant not in PLANT_KINDS:
-            raise ConfigError(f"plant must be 'model3d' or 'mujoco', got {self.plant!r}")
+            raise ConfigError(
+                f"plant must be {' or '.join(map(repr, PLANT_KINDS))}, got {self.plant!r}"
+            )
         if not self.max_time > 0:
             raise ConfigError(f"max_time must be positive, got {self.max_time!r}")
         if not self.goal_tolerance > 0:

@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from gracenav.model import _ballbot3d_generated as _gen
+from gracenav.model.friction import friction_constants, friction_torque
 from gracenav.model.indices import NQ, NU, NX
 from gracenav.params import BallbotParams
 
@@ -140,8 +141,8 @@ class Ballbot3D:
             ε = ``params.friction_smoothing``.
         """
         thd = _vectors(qd, NQ, "qd")[..., :NU]
-        p = self.params
-        return p.coulomb_friction * np.tanh(thd / p.friction_smoothing) + p.viscous_friction * thd
+        out: FloatArray = friction_torque(friction_constants(self.params), thd)
+        return out
 
     def accelerations(self, q: ArrayLike, qd: ArrayLike, tau: ArrayLike) -> FloatArray:
         """Solve the equations of motion for q̈, friction included.

@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from gracenav.errors import ConfigError
+from gracenav.model.friction import friction_constants, friction_torque
 from gracenav.params import BallbotParams
 
 __all__ = ["PlanarBallbot"]
@@ -73,8 +74,8 @@ class PlanarBallbot:
     def friction(self, qd: ArrayLike) -> FloatArray:
         """Friction torque on θ, D_c tanh(θ̇/ε) + D_v θ̇ (N m), shape (...)."""
         thd = np.asarray(qd, dtype=float)[..., 0]
-        p = self.params
-        return p.coulomb_friction * np.tanh(thd / p.friction_smoothing) + p.viscous_friction * thd
+        out: FloatArray = friction_torque(friction_constants(self.params), thd)
+        return out
 
     def accelerations(self, q: ArrayLike, qd: ArrayLike, tau: ArrayLike) -> FloatArray:
         """Solve the equations of motion for q̈ (rad/s²), shape (..., 2)."""

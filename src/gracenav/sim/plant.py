@@ -145,6 +145,7 @@ class Model3DPlant:
         seed: int = 0,
     ) -> None:
         from gracenav.model.ballbot3d import Ballbot3D
+        from gracenav.model.friction import friction_constants
 
         self.params = params if params is not None else BallbotParams()
         if not (isinstance(substeps, int) and substeps >= 1):
@@ -153,7 +154,7 @@ class Model3DPlant:
         self.ball_radius = float(self.params.ball_radius)
         self._c = Ballbot3D(self.params).constants()
         p = self.params
-        self._fr = np.array([p.coulomb_friction, p.viscous_friction, p.friction_smoothing])
+        self._fr = friction_constants(p)
         self._limit = float(p.torque_limit)
         self._sensor = _Sensor(self.ball_radius, position_noise_std, velocity_noise_std, seed)
         self._x = np.zeros(8)
