@@ -10,7 +10,7 @@ does). The first plan of every state on a fresh `Capture` pays for the grid poin
 ways onto rest trims; the table gives that cold time and a second, warm pass.
 
 The peer run places every catch pointing straight at its end point (the heading
-search's span set to 0, ``gracenav.capture._HEADING_SPAN``): the ratio is the
+search's span set to 0, ``gracenav.execution.capture._HEADING_SPAN``): the ratio is the
 search's cost, the coverage column its gain on the same states.
 
     OPENBLAS_NUM_THREADS=1 python bench/bench_capture.py [--states 300] [--seed 0]
@@ -29,13 +29,13 @@ from pathlib import Path
 
 import numpy as np
 
-import gracenav.capture as capture_module
-from gracenav.capture import Capture
+import gracenav.execution.capture as capture_module
 from gracenav.execution import HybridController
-from gracenav.graph import build_graph
+from gracenav.execution.capture import Capture
 from gracenav.library import PolicyLibrary, build_library
 from gracenav.palette import load_palette
 from gracenav.planning import PolicyTree
+from gracenav.planning.graph import build_graph
 from gracenav.world import load_map
 
 ROOT = Path(__file__).resolve().parent.parent

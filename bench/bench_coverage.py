@@ -5,7 +5,7 @@ free positions whose clearance (distance to the nearest obstacle or wall) is at
 least ``footprint + margin`` and (ẋ, ẏ) uniform over the disc |v| <= 0.5 m/s. A
 state is covered when it lies in at least one instantiated start domain S, or when
 a capture (a catch placed at the state, up to two shifts, a rest trim:
-gracenav.capture) is planned for it with the plan lean. Two counts:
+gracenav.execution.capture) is planned for it with the plan lean. Two counts:
 
 * ``library``: the library's estimate, ``start_domain_covers`` or
   ``capture_for(lib).plan``;
@@ -41,11 +41,11 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from gracenav.capture import PlacedPolicy, capture_for
-from gracenav.graph import build_graph
+from gracenav.execution.capture import PlacedPolicy, capture_for
 from gracenav.library import PolicyLibrary, build_library
 from gracenav.palette import load_palette
 from gracenav.params import BallbotParams
+from gracenav.planning.graph import build_graph
 from gracenav.policies import capture_point
 from gracenav.world import WorldMap, load_map
 

@@ -41,9 +41,9 @@ from typing import Any
 import numpy as np
 from bench_library import get_palette
 
-from gracenav.graph import PreparesGraph, build_graph
 from gracenav.library import PolicyLibrary, build_library
 from gracenav.planning import LazyPolicyTree, plan_path, plan_tree
+from gracenav.planning.graph import PreparesGraph, build_graph
 
 SIGMA = 0.05  # m/s, the push model of docs/design.md
 

@@ -36,10 +36,10 @@ import numpy as np
 
 from gracenav.control import design_gains
 from gracenav.errors import CacheError
-from gracenav.graph import build_graph
 from gracenav.library import PolicyLibrary, build_library
 from gracenav.palette import Palette, load_palette, palette_key
 from gracenav.params import BallbotParams
+from gracenav.planning.graph import build_graph
 from gracenav.policies import (
     DomainRadii,
     MotionPolicy,

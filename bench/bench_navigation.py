@@ -24,12 +24,12 @@ import numpy as np
 
 from gracenav.baseline import MotionLimits, plan_decoupled
 from gracenav.execution import HybridController
-from gracenav.graph import build_graph
 from gracenav.library import build_library
 from gracenav.palette import load_palette
 from gracenav.planning import plan_tree
+from gracenav.planning.graph import build_graph
 from gracenav.scenarios import load_scenario
-from gracenav.simulate import state_from_position
+from gracenav.sim import state_from_position
 from gracenav.world import load_map
 
 

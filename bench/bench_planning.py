@@ -43,9 +43,9 @@ import numpy as np
 from bench_library import get_palette
 from scipy.sparse import csgraph
 
-from gracenav.graph import PreparesGraph, build_graph
 from gracenav.library import build_library
 from gracenav.planning import CostCriterion, PolicyTree, plan_tree
+from gracenav.planning.graph import PreparesGraph, build_graph
 from gracenav.world import WorldMap, load_map, office_map
 
 try:

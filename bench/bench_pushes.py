@@ -6,7 +6,7 @@ one push on the body of uniform random direction, magnitude uniform in
 [0, max impulse] N s, at a time uniform over the unpushed run. For each impulse
 bin the table gives: runs that reached the goal; runs that left a domain and were
 caught by a verified policy (the state was in its start domain S: a library policy
-or a catch placed at the state, gracenav.capture), and of those the runs caught by a
+or a catch placed at the state, gracenav.execution.capture), and of those the runs caught by a
 catch; runs that entered balancing mode (the unverified last resort); runs whose
 footprint touched an obstacle or a wall (true positions against the map's
 clearance).
@@ -40,11 +40,11 @@ from typing import Any
 import numpy as np
 
 from gracenav.execution import EventReason, ExecutionOptions, HybridController
-from gracenav.graph import build_graph
 from gracenav.library import DEFAULT_SPEED_CLEARANCE, build_library
 from gracenav.palette import load_palette
+from gracenav.planning.graph import build_graph
+from gracenav.sim import Push, state_from_position
 from gracenav.sim.plant import PLANT_KINDS, PlantKind
-from gracenav.simulate import Push, state_from_position
 from gracenav.world import load_map
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -5,7 +5,7 @@ cells, one pass at spacing d), a person (disc of 0.25 m, 1 m/s) walks a straight
 past a random goal's tree; every 0.1 s of its walk the robot's view changes. Each step
 is timed two ways, interleaved:
 
-* ``repair``: :func:`gracenav.replanning.timed_repair`, what the hybrid controller
+* ``repair``: :func:`gracenav.planning.repair.timed_repair`, what the hybrid controller
   runs: the compiled blocking test, then the repair of the previous step's tree;
 * ``full search``: the same blocking test, then ``plan_tree`` from scratch on the
   graph without the blocked policies (the CSR masked and transposed, then the
@@ -34,10 +34,10 @@ import numpy as np
 import scipy.sparse as sp
 from bench_library import get_palette
 
-from gracenav.graph import build_graph
 from gracenav.library import build_library
 from gracenav.planning import plan_tree
-from gracenav.replanning import KnownObstacle, ObstacleTracker, blocked_policies, timed_repair
+from gracenav.planning.graph import build_graph
+from gracenav.planning.repair import KnownObstacle, ObstacleTracker, blocked_policies, timed_repair
 from gracenav.world import load_map, office_map
 
 
@@ -102,7 +102,7 @@ def run(name: str, world, walks: int, seed: int) -> None:
 
 
 def _sensing():
-    from gracenav.replanning import ObstacleSensing
+    from gracenav.planning.repair import ObstacleSensing
 
     return ObstacleSensing()
 

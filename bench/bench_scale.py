@@ -52,9 +52,9 @@ def child(
     from bench_library import get_palette
 
     from gracenav.errors import ConfigError, MapError
-    from gracenav.graph import build_graph
     from gracenav.library import build_library
     from gracenav.planning import plan_path, plan_tree
+    from gracenav.planning.graph import build_graph
     from gracenav.world import WorldMap, load_map, office_map
 
     out: dict[str, float | int | str] = {"case": case, "rss_start_mib": _rss_mib()}
@@ -171,8 +171,8 @@ def _lazy_stage(out: dict[str, float | int | str], graph: Any, start: int, goal:
 
     # On a graph that has not counted its edges (the bench counted them above), as a
     # controller meets a new graph.
-    from gracenav.graph import build_graph
-    from gracenav.simulate import Push, state_from_position
+    from gracenav.planning.graph import build_graph
+    from gracenav.sim import Push, state_from_position
 
     t0 = time.perf_counter()
     hc = HybridController(lib, build_graph(lib))

@@ -20,7 +20,7 @@ import numpy as np
 
 from gracenav import BallbotParams
 from gracenav.control import design_gains
-from gracenav.simulate import Reference, simulate, simulate_batch, state_from_position
+from gracenav.sim import Reference, simulate, simulate_batch, state_from_position
 
 
 def main() -> None:

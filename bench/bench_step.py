@@ -36,12 +36,11 @@ from pathlib import Path
 import numpy as np
 
 from gracenav.execution import EventReason, ExecutionOptions, HybridController
-from gracenav.graph import build_graph
 from gracenav.library import build_library
 from gracenav.palette import load_palette
+from gracenav.planning.graph import build_graph
 from gracenav.scenarios import load_scenario, prepare_library
-from gracenav.sim import Model3DPlant
-from gracenav.simulate import state_from_position
+from gracenav.sim import Model3DPlant, state_from_position
 from gracenav.world import load_map
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -25,9 +25,9 @@ import pytest
 import yaml
 
 if TYPE_CHECKING:  # gracenav (and numpy) are imported after the environment is set
-    from gracenav.graph import PreparesGraph
     from gracenav.library import PolicyLibrary
     from gracenav.palette import Palette
+    from gracenav.planning.graph import PreparesGraph
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("MPLBACKEND", "Agg")
@@ -70,7 +70,7 @@ def fig5_library(palette: Palette) -> PolicyLibrary:
 
 @pytest.fixture(scope="session")
 def fig5_graph(fig5_library: PolicyLibrary) -> PreparesGraph:
-    from gracenav.graph import build_graph
+    from gracenav.planning.graph import build_graph
 
     return build_graph(fig5_library)
 
@@ -87,6 +87,6 @@ def box_room_library(palette: Palette) -> PolicyLibrary:
 
 @pytest.fixture(scope="session")
 def box_room_graph(box_room_library: PolicyLibrary) -> PreparesGraph:
-    from gracenav.graph import build_graph
+    from gracenav.planning.graph import build_graph
 
     return build_graph(box_room_library)

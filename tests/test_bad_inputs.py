@@ -25,7 +25,7 @@ import yaml
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from gracenav._io import parse_yaml
+from gracenav._util.io import parse_yaml
 from gracenav.cli import main
 from gracenav.errors import GracenavError
 from gracenav.scenarios import RunSummary, load_scenario, parse_scenario
@@ -729,7 +729,7 @@ def test_fuzz_mutations_of_a_valid_scenario(data: st.DataObject) -> None:
     assert all(math.isfinite(v) for s in (*sc.starts, *sc.goals) for v in s)
 
 
-# -- the schema layer: gracenav._validate.Fields -------------------------------------------
+# -- the schema layer: gracenav._util.validate.Fields -------------------------------------------
 # Scenario, parameter and map documents are all read through these readers; each test
 # asserts the exact message shape: "SOURCE: 'KEY.PATH' must be ..., got VALUE", one line.
 
@@ -750,7 +750,7 @@ def test_fuzz_mutations_of_a_valid_scenario(data: st.DataObject) -> None:
     ],
 )
 def test_number_range_words_every_kind_of_limit(limits: dict[str, Any], text: str) -> None:
-    from gracenav._validate import number_range
+    from gracenav._util.validate import number_range
 
     assert number_range(**limits) == text
 
@@ -768,7 +768,7 @@ def _refusal(read: Any) -> str:
 def test_fields_number_messages() -> None:
     import numpy as np
 
-    from gracenav._validate import Fields
+    from gracenav._util.validate import Fields
     from gracenav.errors import MapError
 
     doc = {"radius": -1, "quoted": "0.5", "huge": 10**400, "np": np.float64(-1.5), "t": True}
@@ -800,7 +800,7 @@ def test_fields_number_messages() -> None:
 def test_check_number_for_function_arguments() -> None:
     import numpy as np
 
-    from gracenav._validate import check_number
+    from gracenav._util.validate import check_number
     from gracenav.errors import ConfigError
 
     assert check_number(np.float32(0.5), "resolution", "WorldMap") == 0.5
@@ -812,7 +812,7 @@ def test_check_number_for_function_arguments() -> None:
 
 
 def test_fields_points_messages() -> None:
-    from gracenav._validate import Fields
+    from gracenav._util.validate import Fields
 
     f = Fields(
         {"bounds": [[0, 0]], "poly": [[0, 0], [1, "x"]], "ok": [[0, 1], [2.5, 3]]}, "", "m.yaml"
@@ -840,7 +840,7 @@ def test_fields_points_messages() -> None:
 
 
 def test_fields_variant_messages() -> None:
-    from gracenav._validate import Fields
+    from gracenav._util.validate import Fields
 
     options = ("rectangle", "circle")
     kind, body = Fields({"circle": {"radius": 1}}, "obstacles[0]", "s").variant(options)
@@ -858,7 +858,7 @@ def test_fields_variant_messages() -> None:
 
 
 def test_fields_file_messages(tmp_path: Path) -> None:
-    from gracenav._validate import Fields
+    from gracenav._util.validate import Fields
 
     (tmp_path / "img.pgm").write_bytes(b"")
     (tmp_path / "sub").mkdir()
@@ -896,7 +896,7 @@ _field_values = st.recursive(
 @given(_field_values)
 @example({"'": None})  # a key with a quote is still named in single quotes
 def test_fuzz_every_reader_returns_or_refuses_in_one_line(value: Any) -> None:
-    from gracenav._validate import Fields
+    from gracenav._util.validate import Fields
     from gracenav.errors import MapError
 
     readers = [

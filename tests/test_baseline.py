@@ -15,7 +15,6 @@ from gracenav.baseline import (
     grid_path,
     motion_limits,
     plan_decoupled,
-    run_decoupled,
     shortcut_path,
     smooth_path,
     time_parameterize,
@@ -24,6 +23,7 @@ from gracenav.errors import ConfigError, PlanningError
 from gracenav.execution import TaskStatus
 from gracenav.palette import Palette
 from gracenav.scenarios import parse_scenario
+from gracenav.scenarios.decoupled import run_decoupled
 from gracenav.world import WorldMap, load_map
 
 FOOTPRINT = 0.2
@@ -178,7 +178,7 @@ def test_timing_from_a_moving_start_starts_at_that_speed() -> None:
 def test_motion_limits_come_from_the_palette(palette: Palette) -> None:
     lim = motion_limits(palette, DecoupledOptions(speed_scale=1.0, accel_scale=1.0))
     from gracenav.library import max_trim_speed
-    from gracenav.shape_planner import flat_output_gain
+    from gracenav.primitives.shape_planner import flat_output_gain
 
     assert lim.max_speed == pytest.approx(max_trim_speed(palette), rel=1e-12)
     assert lim.max_acceleration == pytest.approx(

@@ -9,12 +9,11 @@ import numpy as np
 import pytest
 
 from gracenav import BallbotParams, ConfigError
-from gracenav.braking import braking_policies, braking_primitive
 from gracenav.errors import PlanningError
 from gracenav.execution import EventReason, HybridController, TaskStatus
-from gracenav.graph import build_graph, gracefully_prepares
 from gracenav.library import build_library
 from gracenav.palette import REGULATOR_NAME
+from gracenav.planning.graph import build_graph, gracefully_prepares
 from gracenav.policies import (
     BrakingOptions,
     RegulatorOptions,
@@ -22,7 +21,8 @@ from gracenav.policies import (
     push_lean_table,
     regulator_label,
 )
-from gracenav.simulate import (
+from gracenav.primitives.braking import braking_policies, braking_primitive
+from gracenav.sim import (
     Push,
     Reference,
     position_state,
@@ -221,8 +221,8 @@ def test_what_is_kept_per_library_is_shared_and_goes_with_the_library(palette, r
     import gc
     import weakref
 
-    from gracenav.capture import capture_for
-    from gracenav.replanning import ObstacleSensing, ObstacleTracker
+    from gracenav.execution.capture import capture_for
+    from gracenav.planning.repair import ObstacleSensing, ObstacleTracker
 
     lib = build_library(palette, room, footprint_radius=0.2, max_halvings=0)
     graph = build_graph(lib)

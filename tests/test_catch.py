@@ -11,8 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gracenav.capture import PlacedPolicy, capture_for
-from gracenav.catches import (
+from gracenav.execution import CAPTURE, EventReason, ExecutionOptions, HybridController
+from gracenav.execution.capture import PlacedPolicy, capture_for
+from gracenav.library import build_library
+from gracenav.planning.graph import build_graph
+from gracenav.policies import RegulatorOptions, push_lean_table
+from gracenav.policies.catches import (
     PUSHED,
     SETTLED,
     STILL,
@@ -24,11 +28,7 @@ from gracenav.catches import (
     shift_cells,
     verify_headings,
 )
-from gracenav.execution import CAPTURE, EventReason, ExecutionOptions, HybridController
-from gracenav.graph import build_graph
-from gracenav.library import build_library
-from gracenav.policies import RegulatorOptions, push_lean_table
-from gracenav.simulate import Push, position_state, state_from_position
+from gracenav.sim import Push, position_state, state_from_position
 from gracenav.world import load_map
 
 CLUTTERED = Path(__file__).resolve().parent.parent / "examples" / "maps" / "room_6m_cluttered.yaml"
@@ -237,8 +237,8 @@ def test_turning_a_catch_off_its_end_point_holds_more_states(cluttered, monkeypa
     placement (measured: 237 straight, 381 with the search, of 400). And the 3D model,
     run from such a state with the still catch placed as planned, stays within D' and
     ends in G."""
-    import gracenav.capture as capture_module
-    from gracenav.simulate import run_policy
+    import gracenav.execution.capture as capture_module
+    from gracenav.policies import run_policy
 
     lib = cluttered
     capture = capture_for(lib)
@@ -536,7 +536,7 @@ def test_flat_position_state_moves_the_ball_state_by_the_lean(palette, box_room_
     push the ball's speed swings by several times as much as the flat output's
     (measured: 4-5 times), which is why pushed catches test the flat state."""
     from gracenav.policies import flat_position_state
-    from gracenav.shape_planner import flat_output_lengths
+    from gracenav.primitives.shape_planner import flat_output_lengths
 
     params = palette.params
     length = flat_output_lengths(params)
@@ -573,7 +573,7 @@ def test_capture_point_bounds_how_far_every_catch_reaches(palette) -> None:
     act nearest walls and brake along the shortest-reach reference, reach at most
     1.7 times as far (measured 1.31-1.61 times; 1.69-1.86 with trapezoids)."""
     from gracenav.policies import capture_point
-    from gracenav.shape_planner import flat_output_gain, flat_output_lengths
+    from gracenav.primitives.shape_planner import flat_output_gain, flat_output_lengths
 
     params = palette.params
     kappa = flat_output_gain(params)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from gracenav import ConfigError
-from gracenav.domains import EllipsoidalDomain, isotropic_shape, rotation_4d, sphere_points
+from gracenav.policies.domains import EllipsoidalDomain, isotropic_shape, rotation_4d, sphere_points
 
 
 def test_contains_and_value() -> None:

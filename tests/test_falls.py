@@ -9,10 +9,10 @@ import math
 import numpy as np
 import pytest
 
-from gracenav._progress import Progress
+from gracenav._util.progress import Progress
 from gracenav.control import design_gains
 from gracenav.params import BallbotParams
-from gracenav.simulate import (
+from gracenav.sim import (
     DEFAULT_FALL_LEAN,
     Push,
     Reference,

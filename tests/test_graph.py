@@ -12,9 +12,9 @@ from synthetic import GAINS, palette, primitive
 
 from gracenav import ConfigError
 from gracenav.control import ControllerGains
-from gracenav.graph import PreparesGraph, build_graph, gains_equal, gracefully_prepares
 from gracenav.library import PolicyLibrary, build_library
 from gracenav.palette import Palette
+from gracenav.planning.graph import PreparesGraph, build_graph, gains_equal, gracefully_prepares
 from gracenav.policies import (
     MotionPolicy,
     PrimitiveKind,
@@ -286,7 +286,7 @@ def test_lattice_edges_generate_the_matrices(monkeypatch: pytest.MonkeyPatch, de
     """The edges are generated from the lattice, through the dense (point, type) table or
     by bisection among a type's rows; the matrices built from them agree row by row with
     the generator, and nothing per edge is built until asked for."""
-    import gracenav.graph as graph_module
+    import gracenav.planning.graph as graph_module
 
     if not dense:
         monkeypatch.setattr(graph_module, "_DENSE_LOOKUP", 0)
@@ -318,7 +318,7 @@ def test_lattice_edges_generate_the_matrices(monkeypatch: pytest.MonkeyPatch, de
 
 
 def test_lookup_modes_give_the_same_graph(monkeypatch: pytest.MonkeyPatch) -> None:
-    import gracenav.graph as graph_module
+    import gracenav.planning.graph as graph_module
 
     lib = build_library(
         mixed_palette(),
@@ -337,7 +337,7 @@ def test_lookup_modes_give_the_same_graph(monkeypatch: pytest.MonkeyPatch) -> No
 def test_search_form_stores_the_reversed_graph_below_the_limit(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    import gracenav.graph as graph_module
+    import gracenav.planning.graph as graph_module
 
     lib = build_library(
         mixed_palette(),

@@ -1,6 +1,6 @@
 """The hybrid controller on a lazy tree (what it uses where the graph keeps no reversed
 graph): the same runs as with the whole tree, forced on small maps by lowering
-:data:`gracenav.graph.STORED_EDGES`."""
+:data:`gracenav.planning.graph.STORED_EDGES`."""
 
 from __future__ import annotations
 
@@ -11,14 +11,14 @@ import numpy as np
 import pytest
 import yaml
 
-import gracenav.graph as graph_module
+import gracenav.planning.graph as graph_module
 from gracenav.errors import ConfigError
 from gracenav.execution import ExecutionOptions, HybridController, TaskStatus
-from gracenav.graph import build_graph
 from gracenav.library import build_library
 from gracenav.planning import LazyPolicyTree, PolicyTree
+from gracenav.planning.graph import build_graph
 from gracenav.policies import PrimitiveKind
-from gracenav.simulate import Push, state_from_position
+from gracenav.sim import Push, state_from_position
 from gracenav.world import load_map
 from gracenav.world.moving import MovingObstacle
 

@@ -7,7 +7,6 @@ import pytest
 from synthetic import DT, palette, policy, primitive
 
 from gracenav import ConfigError, MapError
-from gracenav.domains import EllipsoidalDomain
 from gracenav.library import (
     POLICY_BYTES,
     InstantiationIteration,
@@ -24,6 +23,7 @@ from gracenav.policies import (
     PrimitiveKind,
     SampledPrimitive,
 )
+from gracenav.policies.domains import EllipsoidalDomain
 from gracenav.world import WorldMap, load_map
 
 # -- inline fixtures: primitives with septic position references ------------------------
@@ -459,7 +459,7 @@ def test_plot_library_coverage_with_captures(tmp_path, monkeypatch, request) -> 
     where a push leaves room to stop."""
     from PIL import Image
 
-    from gracenav.capture import Capture
+    from gracenav.execution.capture import Capture
     from gracenav.plotting import library as plotting
 
     monkeypatch.setattr(plotting, "_CAPTURE_CELLS", 12)
@@ -561,7 +561,7 @@ def test_library_size_is_bounded_and_an_over_budget_pass_refused() -> None:
 def test_compiled_clearance_is_the_maps_clearance() -> None:
     """The sweep check's compiled clearance agrees with WorldMap.clearance, inside, on
     obstacles, on the edge and outside the map."""
-    from gracenav.library import _clearance_at
+    from gracenav.library.sweeps import _clearance_at
 
     wmap = free_map(0.0, 0.0, 3.0, 2.0, [{"circle": {"center": [1.2, 0.9], "radius": 0.3}}])
     rng = np.random.default_rng(5)

@@ -12,8 +12,7 @@ import pytest
 import yaml
 
 from gracenav.execution import ExecutionOptions, HybridController, TaskStatus
-from gracenav.sim import Model3DPlant
-from gracenav.simulate import Push, state_from_position
+from gracenav.sim import Model3DPlant, Push, state_from_position
 
 GOAL = [2.0, 2.0, 0.0, 0.0]
 SCENARIOS = Path(str(resources.files("gracenav") / "data" / "scenarios"))

@@ -20,7 +20,7 @@ mujoco = pytest.importorskip("mujoco")
 from gracenav import BallbotParams  # noqa: E402
 from gracenav.errors import ConfigError  # noqa: E402
 from gracenav.model import Ballbot3D, PlanarBallbot  # noqa: E402
-from gracenav.mujoco_plant import MujocoBallbot, build_mjcf, drive_torque  # noqa: E402
+from gracenav.sim.mujoco import MujocoBallbot, build_mjcf, drive_torque  # noqa: E402
 
 TOL = {"locked": 1e-3, "free": 1e-2}
 """Required relative agreement with the model, per MuJoCo variant."""
@@ -125,7 +125,7 @@ def test_missing_mujoco_says_how_to_install(monkeypatch: pytest.MonkeyPatch) -> 
 def test_package_imports_without_mujoco() -> None:
     code = (
         "import sys; sys.modules['mujoco'] = None\n"
-        "import gracenav, gracenav.mujoco_plant as mp\n"
+        "import gracenav, gracenav.sim.mujoco as mp\n"
         "assert '<mujoco' in mp.build_mjcf(gracenav.BallbotParams())\n"
     )
     subprocess.run([sys.executable, "-c", code], check=True, timeout=60)

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-import gracenav.palette as palette_module
+import gracenav.palette.palette as palette_module
 from gracenav import BallbotParams, CacheError
 from gracenav.control import ControllerGains, LQRWeights, design_gains
 from gracenav.palette import (
@@ -234,7 +234,7 @@ def test_stored_members_are_the_zip_members_and_compressed_ones_are_refused() ->
     import io
     import zipfile
 
-    from gracenav.palette import _stored_members
+    from gracenav.palette.palette import _stored_members
 
     data = shipped_palette_path().read_bytes()
     members = _stored_members(data)

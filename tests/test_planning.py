@@ -17,7 +17,9 @@ from scipy.sparse import csgraph
 from synthetic import palette, policy, primitive
 
 from gracenav import ConfigError, PlanningError
-from gracenav._search import (
+from gracenav.library import build_library
+from gracenav.planning import CostCriterion, LazyPolicyTree, PolicyTree, plan_path, plan_tree
+from gracenav.planning._search import (
     _DONE,
     _REVISITED,
     _TOO_MANY_COSTS,
@@ -25,9 +27,7 @@ from gracenav._search import (
     _search_heap_lattice,
     _search_queues,
 )
-from gracenav.graph import build_graph
-from gracenav.library import build_library
-from gracenav.planning import CostCriterion, LazyPolicyTree, PolicyTree, plan_path, plan_tree
+from gracenav.planning.graph import build_graph
 from gracenav.policies import PrimitiveKind
 from gracenav.world import load_map
 
@@ -317,7 +317,7 @@ def test_trees_on_edges_generated_from_the_lattice_are_the_stored_graphs_trees(
 ) -> None:
     """plan_tree on a graph that stores no edges gives exactly the tree of the stored
     reversed graph (the same relaxation order, so the same ties), by both searches."""
-    import gracenav.graph as graph_module
+    import gracenav.planning.graph as graph_module
 
     if not dense:
         monkeypatch.setattr(graph_module, "_DENSE_LOOKUP", 0)
@@ -451,7 +451,7 @@ def test_lazy_tree_closes_rows_at_the_whole_trees_cost_to_go(
     """A lazy tree settled on random queries (all of them, or the best) closes them at
     plan_tree's cost-to-go and next policy, resumed call after call, on edges generated
     from the lattice (both lookups) and on a stored reversed graph."""
-    import gracenav.graph as graph_module
+    import gracenav.planning.graph as graph_module
 
     if not dense:
         monkeypatch.setattr(graph_module, "_DENSE_LOOKUP", 0)
@@ -606,7 +606,7 @@ def test_lazy_tree_answers_pushes_along_its_path(
     """After a first query, states pushed off the planned path (velocity perturbed by
     5 cm/s): the best policy is the whole tree's, and most are answered without
     resuming the search (a closed row provably cheapest)."""
-    import gracenav.planning as planning_module
+    import gracenav.planning.trees as planning_module
     from gracenav.world import office_map
 
     calls = []

@@ -10,18 +10,18 @@ import scipy.linalg
 
 from gracenav import BallbotParams, ConfigError
 from gracenav.control import design_gains, planar_to_position_coordinates
-from gracenav.domains import correlated_shape
 from gracenav.model import Ballbot3D, PlanarBallbot
 from gracenav.policies import (
     SampledPrimitive,
     VerificationOptions,
     domain_shape,
     rotate_pairs,
+    run_policy,
     switch_torque_jumps,
     verify_placements,
     verify_policy,
 )
-from gracenav.simulate import run_policy
+from gracenav.policies.domains import correlated_shape
 
 PARAMS = BallbotParams()
 

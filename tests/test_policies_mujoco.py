@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from gracenav.palette import load_palette
-from gracenav.simulate import run_policy
+from gracenav.policies import run_policy
 
 pytest.importorskip("mujoco")
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import gracenav.primitives as prim_mod
+import gracenav.primitives.sets as prim_mod
 from gracenav.errors import CacheError
 from gracenav.model.ballbot3d import Ballbot3D
 from gracenav.params import BallbotParams

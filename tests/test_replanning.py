@@ -16,10 +16,10 @@ import scipy.sparse as sp
 import yaml
 
 from gracenav.errors import ConfigError
-from gracenav.graph import build_graph
 from gracenav.library import build_library
 from gracenav.planning import plan_tree
-from gracenav.replanning import (
+from gracenav.planning.graph import build_graph
+from gracenav.planning.repair import (
     SWEEP_STEP,
     KnownObstacle,
     ObstacleSensing,

@@ -16,10 +16,10 @@ import yaml
 from gracenav import ConfigError, PlanningError, planning
 from gracenav.cli import main
 from gracenav.execution import EventReason, ExecutionOptions, HybridController, TaskStatus
-from gracenav.graph import CostCriterion, CostName
+from gracenav.planning.graph import CostCriterion, CostName
 from gracenav.scenarios import load_scenario, parse_scenario, run_scenario, write_outputs
+from gracenav.sim import state_from_position
 from gracenav.sim.plant import PLANT_KINDS, PlantKind
-from gracenav.simulate import state_from_position
 
 SCENARIOS = Path(str(resources.files("gracenav") / "data" / "scenarios"))
 DEG5 = 5.0
@@ -175,7 +175,7 @@ def test_bad_scenarios_name_the_key(patch: dict, message: str) -> None:
 
 def test_plant_kinds_and_cost_criteria_have_one_home() -> None:
     """The scenario's simulation.plant and planner.cost take the values of
-    gracenav.sim.plant.PLANT_KINDS and gracenav.graph.CostCriterion, whose string
+    gracenav.sim.plant.PLANT_KINDS and gracenav.planning.graph.CostCriterion, whose string
     types list the same values; planning's CostCriterion is the graph's."""
     assert typing.get_args(PlantKind) == PLANT_KINDS
     assert typing.get_args(CostName) == tuple(c.value for c in CostCriterion)
@@ -294,8 +294,8 @@ def test_max_jerk_leaves_out_only_the_push_ticks() -> None:
 
     import numpy as np
 
-    from gracenav.scenarios import _max_jerk
-    from gracenav.simulate import Push
+    from gracenav.scenarios.runs import _max_jerk
+    from gracenav.sim import Push
 
     dt = 1.0 / 1024.0
     t = np.arange(0, 1024) * dt

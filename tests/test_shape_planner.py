@@ -9,12 +9,12 @@ import pytest
 import scipy.linalg
 from scipy.optimize import linprog
 
-from gracenav._hermite import QUINTIC_HERMITE, quintic_hermite, quintic_hermite_basis
+from gracenav._util.hermite import QUINTIC_HERMITE, quintic_hermite, quintic_hermite_basis
 from gracenav.errors import ConfigError
 from gracenav.model.ballbot3d import Ballbot3D
 from gracenav.model.planar import PlanarBallbot
 from gracenav.params import BallbotParams
-from gracenav.shape_planner import (
+from gracenav.primitives.shape_planner import (
     BrakeReference,
     NonicReference,
     ShapePlannerOptions,

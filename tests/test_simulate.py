@@ -8,7 +8,7 @@ import pytest
 from gracenav import BallbotParams, ConfigError
 from gracenav.control import design_gains
 from gracenav.model import Ballbot3D
-from gracenav.simulate import (
+from gracenav.sim import (
     BodyForce,
     Drag,
     Push,

@@ -11,13 +11,12 @@ import yaml
 
 from gracenav.errors import ConfigError
 from gracenav.execution import Command, ExecutionOptions, HybridController, TaskStatus
-from gracenav.graph import build_graph
 from gracenav.library import build_library
 from gracenav.model.ballbot3d import Ballbot3D
 from gracenav.palette import load_palette
 from gracenav.params import BallbotParams
-from gracenav.sim import Model3DPlant, MujocoPlant, Plant
-from gracenav.simulate import Push, position_state, state_from_position
+from gracenav.planning.graph import build_graph
+from gracenav.sim import Model3DPlant, MujocoPlant, Plant, Push, position_state, state_from_position
 from gracenav.world import load_map
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "src" / "gracenav" / "data" / "scenarios"

@@ -2,12 +2,12 @@
 policies and scaled domains: measurements").
 
 Every number of that section comes from one subcommand of this script, run on the
-3D model through the compiled closed loop (:func:`gracenav.simulate.simulate_batch`)
+3D model through the compiled closed loop (:func:`gracenav.sim.simulate_batch`)
 with the shipped palette's controller (Fig. 2 cascade, friction compensation):
 
 ``push``
     What lean and lean rate a push (an impulse on the body COM, as
-    :class:`gracenav.simulate.Push` applies it) leaves 0-0.3 s later, under the
+    :class:`gracenav.sim.Push` applies it) leaves 0-0.3 s later, under the
     rest regulator. The table is the lean model the other subcommands start from.
 ``regulator``
     Regulator to a rest trim at the robot's own position: stopping distance,
@@ -50,7 +50,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gracenav.control import ControllerGains, design_gains
-from gracenav.domains import sphere_points
 from gracenav.palette import load_palette
 from gracenav.params import BallbotParams
 from gracenav.policies import (
@@ -61,8 +60,13 @@ from gracenav.policies import (
     VerificationOptions,
     verify_placements,
 )
-from gracenav.shape_planner import NonicReference, flat_output_gain, plan_shape_trajectory
-from gracenav.simulate import (
+from gracenav.policies.domains import sphere_points
+from gracenav.primitives.shape_planner import (
+    NonicReference,
+    flat_output_gain,
+    plan_shape_trajectory,
+)
+from gracenav.sim import (
     Push,
     Reference,
     position_state,
@@ -142,7 +146,7 @@ def load_setup() -> Setup:
 def correlated_shapes(ep: FloatArray, ev: FloatArray, r: FloatArray) -> FloatArray:
     """Shape matrices (N, 4, 4) of correlated domains with extents ``ep`` (m), ``ev``
     (m/s) and correlation ``r``, each (N,): (Σ ⊗ I₂)⁻¹ as
-    :func:`gracenav.domains.correlated_shape`."""
+    :func:`gracenav.policies.domains.correlated_shape`."""
     det = ep**2 * ev**2 * (1.0 - r**2)
     a = ev**2 / det
     b = -r * ep * ev / det

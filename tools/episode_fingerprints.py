@@ -57,12 +57,11 @@ def fingerprint(ep: Any) -> dict[str, Any]:
 def cases(quick: bool = False) -> Iterator[tuple[str, Callable[[], list[Any]]]]:
     """(name, run) for every case; ``run()`` returns its episodes."""
     from gracenav.execution import ExecutionOptions, HybridController
-    from gracenav.graph import build_graph
     from gracenav.library import build_library
     from gracenav.palette import load_palette
+    from gracenav.planning.graph import build_graph
     from gracenav.scenarios import load_scenario, run_scenario
-    from gracenav.sim import Model3DPlant
-    from gracenav.simulate import Push, SimulationOptions, state_from_position
+    from gracenav.sim import Model3DPlant, Push, SimulationOptions, state_from_position
     from gracenav.world import load_map
 
     names = ["fig5_point_to_point", "fig7_drag"]

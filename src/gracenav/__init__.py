@@ -42,23 +42,24 @@ if TYPE_CHECKING:
         HybridController,
         TaskStatus,
     )
-    from gracenav.graph import PreparesGraph, build_graph
     from gracenav.library import PolicyLibrary, build_library
     from gracenav.model import Ballbot3D, PlanarBallbot
     from gracenav.palette import Palette, load_palette
     from gracenav.planning import LazyPolicyTree, PolicyPath, PolicyTree, plan_path, plan_tree
-    from gracenav.policies import MotionPolicy
+    from gracenav.planning.graph import PreparesGraph, build_graph
+    from gracenav.policies import MotionPolicy, run_policy
     from gracenav.primitives import primitive_set
+    from gracenav.primitives.shape_planner import plan_shape_trajectory
     from gracenav.scenarios import load_scenario, run_scenario
-    from gracenav.shape_planner import plan_shape_trajectory
-    from gracenav.sim import Model3DPlant, MujocoPlant, Plant
-    from gracenav.simulate import (
+    from gracenav.sim import (
         BodyForce,
         Drag,
+        Model3DPlant,
+        MujocoPlant,
+        Plant,
         Push,
         StateJump,
         position_state,
-        run_policy,
         simulate,
         simulate_batch,
         state_from_position,
@@ -71,17 +72,17 @@ _LAZY = {
     "Ballbot3D": "gracenav.model",
     "PlanarBallbot": "gracenav.model",
     "design_gains": "gracenav.control",
-    "simulate": "gracenav.simulate",
-    "simulate_batch": "gracenav.simulate",
-    "run_policy": "gracenav.simulate",
-    "state_from_position": "gracenav.simulate",
-    "position_state": "gracenav.simulate",
-    "Push": "gracenav.simulate",
-    "BodyForce": "gracenav.simulate",
-    "StateJump": "gracenav.simulate",
-    "Drag": "gracenav.simulate",
+    "simulate": "gracenav.sim",
+    "simulate_batch": "gracenav.sim",
+    "run_policy": "gracenav.policies",
+    "state_from_position": "gracenav.sim",
+    "position_state": "gracenav.sim",
+    "Push": "gracenav.sim",
+    "BodyForce": "gracenav.sim",
+    "StateJump": "gracenav.sim",
+    "Drag": "gracenav.sim",
     "primitive_set": "gracenav.primitives",
-    "plan_shape_trajectory": "gracenav.shape_planner",
+    "plan_shape_trajectory": "gracenav.primitives.shape_planner",
     "MotionPolicy": "gracenav.policies",
     "Palette": "gracenav.palette",
     "load_palette": "gracenav.palette",
@@ -90,8 +91,8 @@ _LAZY = {
     "load_map": "gracenav.world",
     "PolicyLibrary": "gracenav.library",
     "build_library": "gracenav.library",
-    "PreparesGraph": "gracenav.graph",
-    "build_graph": "gracenav.graph",
+    "PreparesGraph": "gracenav.planning.graph",
+    "build_graph": "gracenav.planning.graph",
     "PolicyTree": "gracenav.planning",
     "LazyPolicyTree": "gracenav.planning",
     "PolicyPath": "gracenav.planning",

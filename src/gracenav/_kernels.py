@@ -2,7 +2,7 @@
 
 Everything here works on plain float64 arrays so that one compiled loop can
 run a single closed-loop simulation or a batch of them; the public, typed
-interface is :mod:`gracenav.simulate` and :mod:`gracenav.model`.
+interface is :mod:`gracenav.sim` and :mod:`gracenav.model`.
 
 Kernels use numpy's floating-point error model: a division by zero (a singular mass
 matrix of non-physical parameters) gives inf or NaN, which the closed loop reports as a
@@ -94,7 +94,7 @@ def rebuild_fine(cstates, cacc, cfirst, ffirst, intervals, basis, h, c, fr, r, s
     :func:`inverse_dynamics`) and ``pos`` (·, 6: ball position, velocity and
     acceleration, r (θ + φ) and its derivatives). Between coarse samples q, q̇, q̈ come
     from the quintic Hermite interpolant with ``basis`` (3, stride, 6) (values, first and
-    second derivatives in the unit interval, :func:`gracenav._hermite.quintic_hermite_basis`);
+    second derivatives in the unit interval, :func:`gracenav._util.hermite.quintic_hermite_basis`);
     ``h`` is the coarse step (s)."""
     stride = basis.shape[1]
     wm = np.empty((4, 4))

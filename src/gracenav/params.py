@@ -13,8 +13,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from gracenav._io import atomic_write_text, load_document
-from gracenav._validate import Fields, check_number, require_mapping
+from gracenav._util.io import atomic_write_text, load_document
+from gracenav._util.validate import Fields, check_number, require_mapping
 
 __all__ = ["BallbotParams"]
 
@@ -53,7 +53,7 @@ _UNITS = {
 
 
 def _limits(name: str) -> dict[str, Any]:
-    """The limits of field ``name`` as keywords of :func:`gracenav._validate.check_number`."""
+    """The limits of field ``name`` as keywords of :func:`gracenav._util.validate.check_number`."""
     return {
         "positive": name in _POSITIVE,
         "minimum": 0.0 if name in _NON_NEGATIVE else None,

@@ -25,7 +25,7 @@ baseline*):
    distance travelled is unchanged); where smoothing pushed the acceleration over the
    limit the speed cap is lowered and the passes repeat.
 4. **Tracking.** The timed path is the desired flat output of the shape trajectory
-   planner (:func:`gracenav.shape_planner.plan_shape_trajectory`, as for the
+   planner (:func:`gracenav.primitives.shape_planner.plan_shape_trajectory`, as for the
    palette's maneuvers), whose feasible state trajectory and feed-forward torques are
    tracked by the palette's Fig. 2 controllers on the scenario's plant, with the
    scenario's disturbances. At the end the goal is held (rest reference) until the
@@ -40,7 +40,7 @@ baseline*):
 Modules by role: :mod:`~gracenav.baseline.options` (options and motion limits),
 :mod:`~gracenav.baseline.path` (steps 1–2), :mod:`~gracenav.baseline.timing` (step 3),
 :mod:`~gracenav.baseline.plan` (one plan: steps 1–3), :mod:`~gracenav.baseline.tracking`
-(steps 4–6) and :mod:`~gracenav.baseline.runner` (a scenario's runs).
+(steps 4–6) and :mod:`~gracenav.scenarios.decoupled` (a scenario's runs).
 """
 
 from __future__ import annotations
@@ -48,7 +48,6 @@ from __future__ import annotations
 from gracenav.baseline.options import DecoupledOptions, MotionLimits, motion_limits
 from gracenav.baseline.path import grid_path, shortcut_path, smooth_path
 from gracenav.baseline.plan import DecoupledPlan, plan_decoupled
-from gracenav.baseline.runner import run_decoupled
 from gracenav.baseline.timing import TimedPath, time_parameterize
 from gracenav.baseline.tracking import BASELINE_POLICY, track_decoupled
 
@@ -61,7 +60,6 @@ __all__ = [
     "grid_path",
     "motion_limits",
     "plan_decoupled",
-    "run_decoupled",
     "shortcut_path",
     "smooth_path",
     "time_parameterize",

@@ -125,7 +125,7 @@ def motion_limits(palette: Palette, options: DecoupledOptions | None = None) -> 
     acceleration and jerk are scaled by ``options.accel_scale``.
     """
     from gracenav.library import max_trim_speed
-    from gracenav.shape_planner import flat_output_gain
+    from gracenav.primitives.shape_planner import flat_output_gain
 
     options = options if options is not None else DecoupledOptions()
     kappa = flat_output_gain(palette.params)

@@ -28,7 +28,7 @@ FloatArray = NDArray[np.float64]
 class TimedPath:
     """A desired position trajectory sampled at the control ticks.
 
-    Satisfies :class:`gracenav.shape_planner.PositionReference`.
+    Satisfies :class:`gracenav.primitives.shape_planner.PositionReference`.
 
     Attributes
     ----------

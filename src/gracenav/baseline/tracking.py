@@ -19,13 +19,13 @@ from gracenav.baseline.plan import DecoupledPlan, plan_decoupled
 from gracenav.baseline.timing import TimedPath
 from gracenav.errors import PlanningError
 from gracenav.params import BallbotParams
-from gracenav.replanning import ReplanEvent
+from gracenav.planning.repair import ReplanEvent
 
 if TYPE_CHECKING:
     from gracenav.control import ControllerGains
     from gracenav.execution import Episode
+    from gracenav.sim import Disturbance, Reference
     from gracenav.sim.plant import PlantKind
-    from gracenav.simulate import Disturbance, Reference
     from gracenav.world import WorldMap
 
 __all__ = ["BASELINE_POLICY", "DecoupledController", "track_decoupled"]
@@ -46,8 +46,8 @@ beyond."""
 def _reference(timed: TimedPath, gains: ControllerGains) -> tuple[Reference, FloatArray, float]:
     """Feasible reference of the 3D model whose flat output tracks ``timed``: states,
     feed-forward torques, ball (x, y, ẋ, ẏ, ẍ, ÿ) (N, 6) and the planner's peak lean."""
-    from gracenav import shape_planner
-    from gracenav.simulate import Reference
+    from gracenav.primitives import shape_planner
+    from gracenav.sim import Reference
 
     # The planner's basis tables take 48 bytes per integration step and spline
     # coefficient: widen the knot spacing of long paths to stay within the budget.
@@ -125,8 +125,7 @@ def track_decoupled(
         If the first plan fails.
     """
     from gracenav.execution import Episode, TaskStatus, drive
-    from gracenav.sim import make_plant
-    from gracenav.simulate import SimulationOptions
+    from gracenav.sim import SimulationOptions, make_plant
 
     sim = simulation if simulation is not None else SimulationOptions()
     plant_params = plant_params if plant_params is not None else gains.params
@@ -221,7 +220,7 @@ class DecoupledController:
             If the first plan fails.
         """
         from gracenav.execution import TaskStatus
-        from gracenav.simulate import position_state
+        from gracenav.sim import position_state
 
         self.x = np.asarray(x0, dtype=float).copy()
         self.p = position_state(self.x, self.r)
@@ -268,7 +267,7 @@ class DecoupledController:
 
     def _begin(self) -> None:
         from gracenav.execution.supervisor import _Segment
-        from gracenav.simulate import Reference
+        from gracenav.sim import Reference
 
         if self.tracking:
             ref, ref_pos, _ = _reference(self.plans[-1].timed, self.gains)
@@ -298,7 +297,7 @@ class DecoupledController:
         """The command (:class:`gracenav.execution.Command`) for one tick."""
         from gracenav.execution import Command, TaskStatus
         from gracenav.execution.supervisor import _NO_CENTER, _NO_SHAPE
-        from gracenav.simulate import position_state
+        from gracenav.sim import position_state
 
         xs = np.asarray(x, dtype=float)
         if self.final is not None:

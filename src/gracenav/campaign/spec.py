@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from gracenav._validate import Fields, check_number
+from gracenav._util.validate import Fields, check_number
 
 __all__ = ["Campaign", "load_campaign", "parse_campaign"]
 
@@ -115,7 +115,7 @@ def parse_campaign(data: Any, *, source: str = "campaign", base: Path | None = N
         path = (base / scen).resolve()
         if not path.is_file():
             raise f.fail(f"'scenario': file {path} not found")
-        from gracenav._io import parse_yaml, read_text_file
+        from gracenav._util.io import parse_yaml, read_text_file
 
         scen_doc = parse_yaml(read_text_file(path, "scenario file"), str(path))
         scen_base = path.parent
@@ -187,7 +187,7 @@ def parse_campaign(data: Any, *, source: str = "campaign", base: Path | None = N
 
 def load_campaign(path: str | Path) -> Campaign:
     """Read and check a campaign YAML file."""
-    from gracenav._io import parse_yaml, read_text_file
+    from gracenav._util.io import parse_yaml, read_text_file
 
     path = Path(path)
     data = parse_yaml(read_text_file(path, "campaign file"), str(path))

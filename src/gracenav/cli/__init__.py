@@ -16,7 +16,7 @@ import threading
 from collections.abc import Sequence
 from typing import Any, NoReturn
 
-from gracenav._io import note_signal, pending_signal
+from gracenav._util.io import note_signal, pending_signal
 from gracenav.errors import GracenavError
 
 __all__ = ["main"]

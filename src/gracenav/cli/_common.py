@@ -35,10 +35,10 @@ def number(
 ) -> Callable[[str], float]:
     """An argparse type: a finite number (or integer) within the given limits.
 
-    The limits are worded as in document errors (:func:`gracenav._validate.number_range`):
+    The limits are worded as in document errors (:func:`gracenav._util.validate.number_range`):
     ``expected a number in (0, 600] s, got '1e9'``.
     """
-    from gracenav._validate import in_range, number_range
+    from gracenav._util.validate import in_range, number_range
 
     def parse(text: str) -> float:
         try:

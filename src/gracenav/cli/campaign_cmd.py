@@ -51,8 +51,8 @@ def register(sub: Any) -> None:
 
 def run_campaign_cmd(args: argparse.Namespace) -> int:
     """Run ``gracenav campaign``."""
-    from gracenav._io import OutputDir
-    from gracenav._progress import Progress
+    from gracenav._util.io import OutputDir
+    from gracenav._util.progress import Progress
     from gracenav.campaign import load_campaign, run_campaign
     from gracenav.campaign.results import write_results
     from gracenav.errors import ConfigError

@@ -182,8 +182,8 @@ def run_verify(args: argparse.Namespace) -> int:
             failed.append(pol.name)
     placed = (*pal.catches, *pal.shifts)
     if placed:
-        from gracenav.catches import reverify
         from gracenav.policies import RegulatorOptions, push_lean_table
+        from gracenav.policies.catches import reverify
 
         pushes = opts.regulator or RegulatorOptions()
         table = push_lean_table(pal.gains, pushes.push_impulses, pushes.push_times, params=plant)

@@ -76,8 +76,8 @@ def _execute(
 ) -> int:
     import dataclasses
 
-    from gracenav._io import OutputDir
-    from gracenav._progress import Progress
+    from gracenav._util.io import OutputDir
+    from gracenav._util.progress import Progress
     from gracenav.params import BallbotParams
     from gracenav.scenarios import load_scenario, run_scenario, write_outputs
 
@@ -147,7 +147,7 @@ def _execute(
 def _fall_limit_deg() -> float:
     import math
 
-    from gracenav.simulate import DEFAULT_FALL_LEAN
+    from gracenav.sim import DEFAULT_FALL_LEAN
 
     return math.degrees(DEFAULT_FALL_LEAN)
 

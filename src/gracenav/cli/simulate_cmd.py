@@ -78,11 +78,11 @@ def run_balance(args: argparse.Namespace) -> int:
     """Run ``gracenav simulate balance``."""
     import sys
 
-    from gracenav._io import OutputDir, atomic_write_text
+    from gracenav._util.io import OutputDir, atomic_write_text
     from gracenav.control import design_gains
     from gracenav.params import BallbotParams
     from gracenav.plotting.timeseries import plot_balance
-    from gracenav.simulate import (
+    from gracenav.sim import (
         Disturbance,
         Push,
         Reference,

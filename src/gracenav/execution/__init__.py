@@ -1,6 +1,7 @@
 """The hybrid controller (paper Sec. IV-C, V-B), tick by tick, and episodes."""
 
-from gracenav.execution.controller import HybridController, TerminalPolicy
+from gracenav.execution.capture import TerminalPolicy
+from gracenav.execution.controller import HybridController
 from gracenav.execution.episode import Episode, ExecutionLog, Trace, drive, held_at
 from gracenav.execution.types import (
     CAPTURE,

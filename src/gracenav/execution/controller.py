@@ -8,7 +8,7 @@ of the next by construction: a graceful switch). Every control tick the state
 is checked against the outer domain D'(t); on exit (a large disturbance) the
 current policy stops and the policy with the lowest cost-to-go whose S
 contains the state starts, without replanning. If there is none, a verified
-catch is placed at the state (:mod:`gracenav.capture`), else the robot
+catch is placed at the state (:mod:`gracenav.execution.capture`), else the robot
 switches to balancing (station-keeping) mode: the only non-graceful switches
 are these recoveries.
 
@@ -25,14 +25,12 @@ import time as _time
 import weakref
 from collections.abc import Sequence
 from concurrent.futures import Executor, ThreadPoolExecutor
-from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from gracenav.capture import CapturePlan, PlacedPolicy, capture_for
-from gracenav.domains import EllipsoidalDomain
 from gracenav.errors import ConfigError, PlanningError
+from gracenav.execution.capture import CapturePlan, TerminalPolicy, capture_for
 from gracenav.execution.episode import Episode, ExecutionLog, drive
 from gracenav.execution.supervisor import BALANCING_MARGIN, Supervisor, TrackingLaw
 from gracenav.execution.types import (
@@ -41,17 +39,17 @@ from gracenav.execution.types import (
     ExecutionOptions,
     TaskStatus,
 )
-from gracenav.graph import PreparesGraph
 from gracenav.library import PolicyLibrary, quarter_turn
 from gracenav.params import BallbotParams
 from gracenav.planning import CostCriterion, LazyPolicyTree, PolicyTree, plan_tree
+from gracenav.planning.graph import PreparesGraph
+from gracenav.planning.repair import HOLD_MARGIN, ObstacleTracker
 from gracenav.policies import PrimitiveKind, flat_position_state
-from gracenav.replanning import HOLD_MARGIN, ObstacleTracker
+from gracenav.sim import Disturbance, position_state
 from gracenav.sim.plant import CONTROL_RATE, Plant, make_plant
-from gracenav.simulate import Disturbance, position_state
 from gracenav.world.moving import MovingObstacle
 
-__all__ = ["HybridController", "TerminalPolicy"]
+__all__ = ["HybridController"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -64,36 +62,6 @@ _LAZY_RECOVERY_BUDGET = 200_000
 
 #: Distance (m, m/s) within which a goal counts as the end state of a lattice trim.
 _ON_LATTICE = 1e-9
-
-
-@dataclass(frozen=True)
-class TerminalPolicy(PlacedPolicy):
-    """A capture regulator of the palette placed at a goal off the lattice: a
-    :class:`~gracenav.capture.PlacedPolicy` at heading 0 whose reference starts (and
-    holds) at the goal.
-
-    Attributes
-    ----------
-    approach : int
-        The library rest trim the task reaches first; its G lies in this S.
-    """
-
-    approach: int
-
-    @property
-    def goal_xy(self) -> NDArray[np.float64]:
-        """Where it holds the robot (m)."""
-        return self.start_xy
-
-    def outer_domain(self, t: float) -> EllipsoidalDomain:
-        """D'(t) in the world frame."""
-        return self._world(self.policy.outer_domain(t))
-
-    @property
-    def name(self) -> str:
-        """E.g. ``regulate[ep=0.55m]@(1.23, 2.5)``."""
-        x, y = self.goal_xy
-        return f"{self.policy.name}@({x:g}, {y:g})"
 
 
 #: Terminal regulators by goal (:meth:`HybridController.terminal_policies`) of each
@@ -320,7 +288,7 @@ class HybridController:
         """The single-goal optimal tree toward library row ``goal_policy`` (cached).
 
         The whole tree (:func:`plan_tree`) when the graph keeps its reversed graph
-        (:meth:`PreparesGraph.search_form`, up to :data:`gracenav.graph.STORED_EDGES`
+        (:meth:`PreparesGraph.search_form`, up to :data:`gracenav.planning.graph.STORED_EDGES`
         edges); above that, a :class:`LazyPolicyTree` that :meth:`best_policy` and
         :meth:`recovery_point` settle where they read it (a whole tree there takes
         tens of seconds); its entry in :attr:`tree_seconds` is its allocation, the
@@ -355,7 +323,7 @@ class HybridController:
         :data:`BALANCING_MARGIN`, or the robot's own clearance if that is smaller. The
         current position if none of the :data:`_BALANCING_SEARCH` nearest qualifies.
         With moving obstacles (``dyn``), a point or a segment a known obstacle may reach
-        within :data:`gracenav.replanning.HOLD_HORIZON` is not a candidate either, and
+        within :data:`gracenav.planning.repair.HOLD_HORIZON` is not a candidate either, and
         when they block the way every unblocked rest trim is a candidate.
 
         On a lazy tree, "reaches the goal" is what the search knows: it is settled (at
@@ -398,7 +366,7 @@ class HybridController:
 
     def capture_plan(self, x: ArrayLike, tree: PolicyTree | LazyPolicyTree) -> CapturePlan | None:
         """The cheapest verified capture (catch, shift, rest trim toward the tree's goal)
-        of the model state ``x`` (8,), or None (see :class:`gracenav.capture.Capture`).
+        of the model state ``x`` (8,), or None (see :class:`gracenav.execution.capture.Capture`).
         Settled and still catches are considered when the lean and lean rate (norms
         over both axes) are within their band of upright; the pushed ones test the
         flat output's position state (catches start upright)."""
@@ -475,7 +443,7 @@ class HybridController:
             range (``options.sensing``): it then blocks the policies they may meet,
             repairs the tree every sensing period, switches away from a policy that
             becomes blocked while it runs, and holds an unblocked rest trim while no
-            way to the goal is free (:mod:`gracenav.replanning`).
+            way to the goal is free (:mod:`gracenav.planning.repair`).
 
         Raises
         ------

@@ -17,13 +17,13 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from gracenav.capture import CapturePlan
 from gracenav.errors import ConfigError
+from gracenav.execution.capture import CapturePlan
 from gracenav.execution.types import Command, EventReason, SwitchEvent, TaskStatus
 from gracenav.params import BallbotParams
-from gracenav.replanning import ReplanEvent
+from gracenav.planning.repair import ReplanEvent
+from gracenav.sim import BodyForce, Disturbance, Drag, Push, StateJump, position_state
 from gracenav.sim.plant import DisturbablePlant, Plant
-from gracenav.simulate import BodyForce, Disturbance, Drag, Push, StateJump, position_state
 from gracenav.world.moving import MovingObstacle
 
 __all__ = ["Episode", "ExecutionLog", "TickController", "Trace", "drive", "held_at"]

@@ -16,13 +16,13 @@ import time as _time
 from collections.abc import Callable
 from concurrent.futures import Executor, Future
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
-from gracenav.capture import CapturePlan, PlacedPolicy
 from gracenav.control import ControllerGains
+from gracenav.execution.capture import CapturePlan, PlacedPolicy
 from gracenav.execution.episode import ExecutionLog
 from gracenav.execution.types import (
     CAPTURE,
@@ -33,12 +33,17 @@ from gracenav.execution.types import (
     SwitchEvent,
     TaskStatus,
 )
+from gracenav.planning.repair import HOLD_MARGIN, ObstacleTracker
 from gracenav.policies import PrimitiveKind, instantiated_reference
-from gracenav.replanning import HOLD_MARGIN, ObstacleTracker
-from gracenav.simulate import position_state, state_from_position
+from gracenav.sim import position_state, state_from_position
 
 if TYPE_CHECKING:
-    from gracenav.execution.controller import HybridController, TerminalPolicy
+    from concurrent.futures import ThreadPoolExecutor
+
+    from gracenav.control import ControllerGains as _Gains
+    from gracenav.execution.capture import TerminalPolicy
+    from gracenav.library import PolicyLibrary
+    from gracenav.params import BallbotParams
     from gracenav.planning import LazyPolicyTree, PolicyTree
 
 __all__ = ["Supervisor", "TrackingLaw"]
@@ -64,6 +69,33 @@ CAPTURE_LEAD = 0.05
 
 _NO_CENTER = np.zeros((0,))
 _NO_SHAPE = np.zeros((0, 0))
+
+
+class Planner(Protocol):
+    """What a :class:`Supervisor` asks of its hybrid controller: the library, the
+    controller's model, and the planning queries (:class:`HybridController`)."""
+
+    library: PolicyLibrary
+    gains: _Gains
+    params: BallbotParams
+    dt: float
+    radius: float
+    law: TrackingLaw
+
+    @property
+    def whole_trees(self) -> bool: ...
+
+    def planning_executor(self) -> ThreadPoolExecutor | Executor: ...
+
+    def tree(self, goal_policy: int) -> PolicyTree | LazyPolicyTree: ...
+
+    def best_policy(self, p: Any, tree: PolicyTree | LazyPolicyTree) -> int: ...
+
+    def capture_plan(self, x: Any, tree: PolicyTree | LazyPolicyTree) -> CapturePlan | None: ...
+
+    def recovery_point(
+        self, p: FloatArray, tree: PolicyTree | LazyPolicyTree, dyn: ObstacleTracker | None = None
+    ) -> FloatArray: ...
 
 
 class TrackingLaw:
@@ -171,7 +203,7 @@ class Supervisor:
 
     def __init__(
         self,
-        hc: HybridController,
+        hc: Planner,
         options: ExecutionOptions,
         *,
         sequence: list[int],
@@ -233,7 +265,7 @@ class Supervisor:
         self.tree_job: Job | None = None
         if self.background and options.capture:
             # Load the compiled prediction once here, not in the tick that first needs it.
-            from gracenav.simulate import Reference, simulate
+            from gracenav.sim import Reference, simulate
 
             seg = self._coast(state_from_position(np.zeros(4), self.r), 2)
             ref = Reference(seg.ref_states, seg.ref_inputs, self.dt)
@@ -542,7 +574,7 @@ class Supervisor:
     def _ask_capture(self, x: FloatArray) -> None:
         """Ask for a capture of the state predicted :data:`CAPTURE_LEAD` ahead while the
         robot coasts (:meth:`_coast`), predicted on the controller's own model."""
-        from gracenav.simulate import Reference, simulate
+        from gracenav.sim import Reference, simulate
 
         lead = max(1, round(CAPTURE_LEAD / self.dt))
         wait = self._coast(x, lead + round(CAPTURE_WAIT / self.dt))

@@ -12,9 +12,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gracenav.errors import ConfigError
-from gracenav.replanning import ObstacleSensing
+from gracenav.planning.repair import ObstacleSensing
+from gracenav.sim import SimulationOptions
 from gracenav.sim.plant import PLANT_KINDS, PlantKind
-from gracenav.simulate import SimulationOptions
 
 __all__ = [
     "CAPTURE",
@@ -35,7 +35,7 @@ PlanningMode = Literal["instant", "threaded", "modelled"]
 #: Policy index of the terminal regulator in :attr:`Episode.policy` and
 #: :class:`SwitchEvent` (it is not a library row; −1 is balancing mode).
 TERMINAL = -2
-#: Policy index of a placed catch or shift (:mod:`gracenav.capture`).
+#: Policy index of a placed catch or shift (:mod:`gracenav.execution.capture`).
 CAPTURE = -4
 
 
@@ -61,7 +61,7 @@ class EventReason(enum.Enum):
     """The way cleared while holding: the task goes on."""
     CAPTURE = "capture"
     """No library policy's S contains the state: a catch placed at the state (and a
-    shift) bring it onto a rest trim (:mod:`gracenav.capture`)."""
+    shift) bring it onto a rest trim (:mod:`gracenav.execution.capture`)."""
 
     @property
     def graceful(self) -> bool:
@@ -134,11 +134,11 @@ class ExecutionOptions:
         gracenav extension: the paper assumes 100 % coverage and stops the task).
     capture : bool
         When no library policy's start domain contains the state, place a verified
-        catch at it (:mod:`gracenav.capture`) before falling back to balancing mode,
+        catch at it (:mod:`gracenav.execution.capture`) before falling back to balancing mode,
         and start with one when none contains the start state.
     sensing : ObstacleSensing
         Range, period and margin of the moving-obstacle sensing (used only when a run
-        has moving obstacles; :mod:`gracenav.replanning`).
+        has moving obstacles; :mod:`gracenav.planning.repair`).
     simulation : SimulationOptions
         Integration substeps and sensor noise of the simulated plant, and the fall
         limit (a lean beyond it ends the task with :attr:`TaskStatus.FELL`).

@@ -178,9 +178,9 @@ def _capture_grid(
 ) -> tuple[np.ndarray, tuple[float, float, float, float], float]:
     """As :func:`_coverage_grid`, on a coarser grid, for states at |v| <= 0.5 m/s
     (uniform on the disc) covered by a library S or a capture planned with the plan
-    lean (:meth:`gracenav.capture.Capture.covers`); also the share of all of them."""
-    from gracenav._progress import Progress
-    from gracenav.capture import capture_for
+    lean (:meth:`gracenav.execution.capture.Capture.covers`); also the share of all of them."""
+    from gracenav._util.progress import Progress
+    from gracenav.execution.capture import capture_for
 
     wmap = library.world_map
     xy, shape, extent = _cell_samples(library, _CAPTURE_CELLS, _CAPTURE_VELOCITIES, rng)
@@ -240,7 +240,7 @@ def plot_library(
     if the palette has catches, a fourth panel the coverage with captures: on a
     coarser grid, states at up to 0.5 m/s (uniform on the disc, as the coverage
     bench draws them) in a library S or with a capture planned at the plan lean
-    (:mod:`gracenav.capture`), what a push leaves a verified policy for.
+    (:mod:`gracenav.execution.capture`), what a push leaves a verified policy for.
 
     Parameters
     ----------
@@ -259,7 +259,7 @@ def plot_library(
     Path
         The written file.
     """
-    from gracenav.capture import capture_for
+    from gracenav.execution.capture import capture_for
     from gracenav.plotting._figure import agg_figure
 
     rng = np.random.default_rng(seed)

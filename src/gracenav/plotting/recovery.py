@@ -16,10 +16,10 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from gracenav.domains import EllipsoidalDomain
 from gracenav.plotting._figure import agg_figure
 from gracenav.plotting.navigation import draw_map
-from gracenav.simulate import Drag, Push
+from gracenav.policies.domains import EllipsoidalDomain
+from gracenav.sim import Drag, Push
 
 __all__ = [
     "DisturbanceArrow",
@@ -136,7 +136,7 @@ class RecoveryData:
         The ball's XY path (m), where the plant truly is.
     catch_start_domains : tuple of ndarray, shape (n, 2)
         XY outlines of the start domains S of the catches and shifts placed at the
-        robot's state (:mod:`gracenav.capture`) and started in ``window`` (m).
+        robot's state (:mod:`gracenav.execution.capture`) and started in ``window`` (m).
     catch_outer_domains : tuple of ndarray, shape (n, 2)
         XY outlines of their outer domains D'(t) every :data:`CATCH_OUTER_EVERY` s and
         at their last tick (m): together they draw the swept D' that was checked

@@ -1,5 +1,23 @@
-"""Simulated plants and the Plant protocol a per-tick controller drives."""
+"""Simulation: the compiled closed loop of the Fig. 2 controllers (single runs and batches),
+the disturbances, and the plants (the Plant protocol a per-tick controller drives)."""
 
+from gracenav.sim.closed_loop import (
+    DEFAULT_FALL_LEAN,
+    BatchResult,
+    BodyForce,
+    Disturbance,
+    Drag,
+    Push,
+    Reference,
+    SimulationOptions,
+    SimulationResult,
+    StateJump,
+    StopReason,
+    position_state,
+    simulate,
+    simulate_batch,
+    state_from_position,
+)
 from gracenav.sim.plant import (
     CONTROL_RATE,
     DisturbablePlant,
@@ -12,10 +30,25 @@ from gracenav.sim.plant import (
 
 __all__ = [
     "CONTROL_RATE",
+    "DEFAULT_FALL_LEAN",
+    "BatchResult",
+    "BodyForce",
     "DisturbablePlant",
+    "Disturbance",
+    "Drag",
     "Model3DPlant",
     "MujocoPlant",
     "Plant",
     "PlantKind",
+    "Push",
+    "Reference",
+    "SimulationOptions",
+    "SimulationResult",
+    "StateJump",
+    "StopReason",
     "make_plant",
+    "position_state",
+    "simulate",
+    "simulate_batch",
+    "state_from_position",
 ]

@@ -7,7 +7,7 @@ hold). Two are shipped: :class:`Model3DPlant`, the compiled 3D model the palette
 verified on, and :class:`MujocoPlant`, the MuJoCo ballbot. A robot of a user's own
 (another simulator, or hardware behind a bridge) is any object with the same four
 members. Plants that also take the simulated disturbances
-(:class:`gracenav.simulate.Push`, ``BodyForce``, ``StateJump``, ``Drag``) implement
+(:class:`gracenav.sim.Push`, ``BodyForce``, ``StateJump``, ``Drag``) implement
 :class:`DisturbablePlant`.
 """
 
@@ -207,7 +207,7 @@ class Model3DPlant:
 
 
 class MujocoPlant:
-    """The MuJoCo ballbot (:class:`gracenav.mujoco_plant.MujocoBallbot`, yaw locked)
+    """The MuJoCo ballbot (:class:`gracenav.sim.mujoco.MujocoBallbot`, yaw locked)
     as a plant, with the same disturbances and measurement noise as
     :class:`Model3DPlant`; a push is a force of impulse/dt over the next period.
 
@@ -233,7 +233,7 @@ class MujocoPlant:
         dt: float = 1.0 / CONTROL_RATE,
     ) -> None:
         from gracenav.model.ballbot3d import Ballbot3D
-        from gracenav.mujoco_plant import MujocoBallbot
+        from gracenav.sim.mujoco import MujocoBallbot
 
         self.params = params if params is not None else BallbotParams()
         if not (isinstance(substeps, int) and substeps >= 1):

@@ -16,7 +16,7 @@ from typing import Any, TypeAlias
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from gracenav._validate import show
+from gracenav._util.validate import show
 from gracenav.errors import ConfigError, MapError
 
 __all__ = ["MAX_COORDINATE", "MAX_POLYGON_POINTS", "Circle", "Polygon", "Rectangle", "Shape"]

@@ -4,7 +4,7 @@ The description is ``{"bounds": [[xmin, ymin], [xmax, ymax]], "obstacles": [...]
 "resolution": 0.05, "name": "..."}`` in metres; each obstacle is
 ``{"rectangle": {"min": [x, y], "max": [x, y]}}``, ``{"circle": {"center": [x, y],
 "radius": r}}`` or ``{"polygon": {"points": [[x, y], ...]}}``. This module reads the
-description with :class:`gracenav._validate.Fields` (types, key paths) and hands the
+description with :class:`gracenav._util.validate.Fields` (types, key paths) and hands the
 shapes to :meth:`WorldMap.from_shapes`; the shapes check their own geometry (a rectangle's
 corners in order, a simple polygon) and the grid its extent and budget.
 """
@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from gracenav._validate import Fields
+from gracenav._util.validate import Fields
 from gracenav.errors import MapError
 from gracenav.world.geometry import (
     MAX_COORDINATE,

@@ -14,7 +14,7 @@ from typing import Any
 
 import yaml
 
-from gracenav._io import StrictLoader, yaml_error_message
+from gracenav._util.io import StrictLoader, yaml_error_message
 from gracenav.errors import MapError
 from gracenav.world.inline import map_from_description
 from gracenav.world.occupancy import INLINE, WorldMap

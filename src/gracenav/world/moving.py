@@ -4,7 +4,7 @@ A :class:`MovingObstacle` is a disc that is *present* from ``appear`` to ``leave
 (s, episode time) and meanwhile moves along the polyline ``path`` at ``speed`` (m/s)
 from its first point, stopping at the last (a single point: it stands still). The robot
 does not know it in advance: the hybrid controller learns it when it comes within its
-sensing range (:class:`gracenav.replanning.ObstacleSensing`).
+sensing range (:class:`gracenav.planning.repair.ObstacleSensing`).
 """
 
 from __future__ import annotations

@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import ndimage
 
-from gracenav._validate import check_number
+from gracenav._util.validate import check_number
 from gracenav.errors import MapError
 from gracenav.world.geometry import (
     _EPS,

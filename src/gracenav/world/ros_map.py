@@ -23,8 +23,8 @@ import numpy as np
 from numpy.typing import NDArray
 from PIL import Image, ImageFile
 
-from gracenav._io import atomic_write_bytes, atomic_write_text
-from gracenav._validate import Fields
+from gracenav._util.io import atomic_write_bytes, atomic_write_text
+from gracenav._util.validate import Fields
 from gracenav.errors import ConfigError, MapError
 from gracenav.world.geometry import BoolArray
 from gracenav.world.occupancy import MAX_MAP_CELLS, WorldMap, check_map_budget
@@ -185,7 +185,7 @@ def _open_image(fp: IO[bytes], kind: str, where: str) -> ImageFile.ImageFile:
 def map_from_ros_yaml(doc: Mapping[Any, Any], path: Path) -> WorldMap:
     """Check a map_server YAML document read from ``path`` and load the image it names.
 
-    The fields are read with :class:`gracenav._validate.Fields`; the image path is
+    The fields are read with :class:`gracenav._util.validate.Fields`; the image path is
     relative to ``path``'s folder (or absolute), as map_server reads it.
 
     Raises

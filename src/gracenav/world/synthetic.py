@@ -6,7 +6,7 @@ import itertools
 
 import numpy as np
 
-from gracenav._validate import check_number
+from gracenav._util.validate import check_number
 from gracenav.world.geometry import Circle, Rectangle, Shape
 from gracenav.world.occupancy import DEFAULT_RESOLUTION, WorldMap
 

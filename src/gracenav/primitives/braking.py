@@ -53,7 +53,7 @@ from gracenav.policies import (
 )
 
 if TYPE_CHECKING:
-    from gracenav.shape_planner import ShapePlannerResult
+    from gracenav.primitives.shape_planner import ShapePlannerResult
 
 __all__ = ["braking_name", "braking_policies", "braking_primitive", "sampled_with_rest_tail"]
 
@@ -81,7 +81,7 @@ def braking_primitive(
 
     Returns None if no stopping distance within ``options.max_duration`` is feasible.
     """
-    from gracenav.shape_planner import NonicReference, plan_shape_trajectory
+    from gracenav.primitives.shape_planner import NonicReference, plan_shape_trajectory
 
     params = gains.params
     lattice = step * np.hypot(*direction)

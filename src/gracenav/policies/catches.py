@@ -12,7 +12,7 @@ speed difference to the nearest catch and a grid cell of placement; its outer
 domain D' is a tube of fixed extents around the braking path, much narrower than a
 capture regulator's disc. Near a wall what counts is how far ahead the braking
 goes; the candidate that goes least far is usually the shortest-reach braking
-(:class:`~gracenav.shape_planner.ShortestBrakeReference`), which first drives the
+(:class:`~gracenav.primitives.shape_planner.ShortestBrakeReference`), which first drives the
 ball forward to lean the body back and then brakes at the torque share. A *shift*
 (a rest-to-rest maneuver of up to ``shift_radius`` between grid points, its S ⊇ G)
 then brings the robot onto a lattice rest trim of the library, whose S ⊇ G:
@@ -43,7 +43,7 @@ and the still band, with a narrower D' (a *still shift*). A still catch hands ov
 either kind; the others only to the first.
 
 This module designs and verifies them (the palette builds them: :mod:`gracenav.palette`);
-:mod:`gracenav.capture` places them at the robot's state on a library.
+:mod:`gracenav.execution.capture` places them at the robot's state on a library.
 """
 
 from __future__ import annotations
@@ -76,7 +76,7 @@ from gracenav.policies import (
 
 if TYPE_CHECKING:
     from gracenav.params import BallbotParams
-    from gracenav.shape_planner import PositionReference
+    from gracenav.primitives.shape_planner import PositionReference
 
 __all__ = [
     "CATCH_NAME",
@@ -108,7 +108,7 @@ STILL = "still"
 #: Planned durations are whole multiples of this (s): 8 control ticks.
 _DURATION_STEP = 1.0 / 128.0
 #: Limits of the shortest-reach braking's linear program, as shares of the class's
-#: (:class:`~gracenav.shape_planner.ShortestBrakeReference`).
+#: (:class:`~gracenav.primitives.shape_planner.ShortestBrakeReference`).
 _BRAKE_DERATE = 0.97
 #: Its duration is at least this times (1 + speed in m/s) (s): its reach then no longer
 #: shrinks with more time (within 0.5 mm at 0.35-0.6 m/s).
@@ -179,8 +179,8 @@ def _plan_to_rest(
     default ``options.min_duration``) whose reference ``reference_of(T)`` (from (0,
     ``velocity``) to rest) the shape planner makes feasible within ``options.max_lean``
     and ``torque_limit``, sampled with the rest tail."""
-    from gracenav.braking import sampled_with_rest_tail
-    from gracenav.shape_planner import plan_shape_trajectory
+    from gracenav.primitives.braking import sampled_with_rest_tail
+    from gracenav.primitives.shape_planner import plan_shape_trajectory
 
     params = gains.params
     t_min = options.min_duration if min_duration is None else min_duration
@@ -237,15 +237,19 @@ def catch_primitives(
 
     The candidates are the C⁴ nonic smooth step (the nonic from (0, v) to (v T/2, 0)),
     and for each torque share of the class the shortest-reach braking
-    (:class:`~gracenav.shape_planner.ShortestBrakeReference`, its linear program's
+    (:class:`~gracenav.primitives.shape_planner.ShortestBrakeReference`, its linear program's
     limits 97 % of the class's, at least 1 + v s long) and one smooth trapezoidal
-    deceleration (:class:`~gracenav.shape_planner.BrakeReference`) per ramp of
+    deceleration (:class:`~gracenav.primitives.shape_planner.BrakeReference`) per ramp of
     ``options.ramps``. Each is of the shortest T feasible on the 3D model with the
     class's lean (``max_lean``, ``settled_max_lean`` or ``still_max_lean``) and torque
     (the share of the limit; the whole limit for the nonic). At speed 0, the rest
     hold of the tail's duration. Empty if nothing is feasible within ``max_duration``.
     """
-    from gracenav.shape_planner import BrakeReference, NonicReference, ShortestBrakeReference
+    from gracenav.primitives.shape_planner import (
+        BrakeReference,
+        NonicReference,
+        ShortestBrakeReference,
+    )
 
     name = f"{CATCH_NAME}_{speed:g}_{lean_class}"
     if speed == 0.0:
@@ -309,7 +313,7 @@ def shift_primitive(
 ) -> SampledPrimitive | None:
     """The rest-to-rest shift by ``offset`` (m) of the shortest feasible duration (at
     least 1 s), then the rest tail."""
-    from gracenav.shape_planner import NonicReference
+    from gracenav.primitives.shape_planner import NonicReference
 
     off = np.asarray(offset, dtype=float)
     zero = np.zeros(2)

@@ -30,9 +30,8 @@ from typing import Any, overload
 import numpy as np
 from numpy.typing import NDArray
 
-from gracenav._cache import cache_dir
-from gracenav._io import atomic_write_bytes
-from gracenav.catches import PUSHED, SETTLED, STILL, catch_policies, shift_cells, shift_policies
+from gracenav._util.cache import cache_dir
+from gracenav._util.io import atomic_write_bytes
 from gracenav.control import ControllerGains, LQRWeights, design_gains
 from gracenav.errors import CacheError, ConfigError
 from gracenav.params import BallbotParams
@@ -47,6 +46,14 @@ from gracenav.policies import (
     SampledPrimitive,
     VerificationOptions,
     VerificationReport,
+)
+from gracenav.policies.catches import (
+    PUSHED,
+    SETTLED,
+    STILL,
+    catch_policies,
+    shift_cells,
+    shift_policies,
 )
 from gracenav.primitives import PrimitiveSetOptions
 
@@ -146,8 +153,8 @@ class Palette:
     primitive_options : PrimitiveSetOptions
         Options the primitive set Σ(d) was planned with.
     catches, shifts : tuple of MotionPolicy
-        The verified catches and shifts (:mod:`gracenav.catches`): placed at the
-        robot's state (:mod:`gracenav.capture`), never on the lattice, so not among
+        The verified catches and shifts (:mod:`gracenav.policies.catches`): placed at the
+        robot's state (:mod:`gracenav.execution.capture`), never on the lattice, so not among
         ``policies``.
     """
 
@@ -495,7 +502,7 @@ def _stored_members(data: bytes) -> dict[str, memoryview]:
 class PlacedPolicies(Sequence[MotionPolicy]):
     """A palette's catches or shifts, read from the file and rebuilt on first use.
 
-    They serve captures only (:mod:`gracenav.capture`), so loading a palette does not
+    They serve captures only (:mod:`gracenav.execution.capture`), so loading a palette does not
     pay for them; the file's bytes stay with the object (it pickles to worker
     processes). A file that turns out corrupt then raises :class:`CacheError`.
     """
@@ -746,9 +753,9 @@ def _regulators(
 def _braking_one(
     args: tuple[float, tuple[int, int], float, ControllerGains, VerificationOptions, DomainShape],
 ) -> tuple[MotionPolicy, ...]:
-    """One braking maneuver (see :mod:`gracenav.braking`), planned and verified at every
+    """One braking maneuver (see :mod:`gracenav.primitives.braking`), planned and verified at every
     size; empty if no stopping distance is feasible."""
-    from gracenav.braking import braking_policies, braking_primitive
+    from gracenav.primitives.braking import braking_policies, braking_primitive
 
     speed, direction, step, gains, options, shape = args
     assert options.braking is not None
@@ -771,7 +778,7 @@ def _catch_one(
     args: tuple[float, tuple[str, ...], ControllerGains, VerificationOptions, DomainShape],
 ) -> tuple[MotionPolicy, ...]:
     """The catches of some lean classes from one speed (see
-    :func:`gracenav.catches.catch_policies`)."""
+    :func:`gracenav.policies.catches.catch_policies`)."""
     from gracenav.policies import RegulatorOptions, push_lean_table
 
     speed, classes, gains, options, shape = args
@@ -783,7 +790,7 @@ def _catch_one(
 def _shift_one(
     args: tuple[tuple[int, int], float, ControllerGains, VerificationOptions, DomainShape],
 ) -> tuple[MotionPolicy, ...]:
-    """One shift (see :func:`gracenav.catches.shift_policies`)."""
+    """One shift (see :func:`gracenav.policies.catches.shift_policies`)."""
     cell, d, gains, options, shape = args
     return shift_policies(cell, d, gains, options, shape)
 
@@ -840,7 +847,7 @@ def build_palette(
     -------
     Palette
     """
-    from gracenav._progress import Progress
+    from gracenav._util.progress import Progress
     from gracenav.policies import domain_shape
 
     params = params if params is not None else BallbotParams()

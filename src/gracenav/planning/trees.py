@@ -6,7 +6,7 @@ policy toward the goal and its cost-to-go: no replanning is needed when a
 disturbance moves the robot into another policy's domain.
 
 The reversed graph in CSR form is the adjacency matrix in CSC form, reinterpreted:
-pass :meth:`gracenav.graph.PreparesGraph.csc` (built once per graph) and a tree costs
+pass :meth:`gracenav.planning.graph.PreparesGraph.csc` (built once per graph) and a tree costs
 only the search; an adjacency in any other form is converted on every call, O(N + E).
 
 The search is a compiled (numba) Dijkstra that uses one property of these graphs: an
@@ -15,17 +15,18 @@ lengths (18 and 39 for the 139-policy palette) however large the map. With one F
 queue per distinct edge cost, each queue receives its keys in increasing order (a key is
 the settled cost-to-go, which only grows, plus the queue's constant cost), so a push is
 an append and a pop takes the smallest of the queue heads, kept in a binary heap of at
-most :data:`gracenav._search._MAX_QUEUES` queues: O(E + N log K) for K distinct costs instead of
-O(E + N log N). Measured side by side with :func:`scipy.sparse.csgraph.dijkstra` on the
-same arrays (``bench/bench_planning.py``, medians): 1.8 times faster on the paper's 3.5 m
-area, 3 times on the 50 m office for random goals and 1.3 times for goals in its
-corridors, whose trees span half the library (there the scan of the edges, random
-accesses into a 320,000-policy array, dominates). Graphs with more distinct costs,
-or whose costs are not those of their source policies (a policy reached again at a lower
-cost), are searched with an indexed binary heap instead: the same costs, and with
-positive costs the same next policies. Each search allocates about 17 bytes per policy.
+most ``_MAX_QUEUES`` queues (:mod:`gracenav.planning._search`): O(E + N log K) for K
+distinct costs instead of O(E + N log N). Measured side by side with
+:func:`scipy.sparse.csgraph.dijkstra` on the same arrays (``bench/bench_planning.py``,
+medians): 1.8 times faster on the paper's 3.5 m area, 3 times on the 50 m office for
+random goals and 1.3 times for goals in its corridors, whose trees span half the library
+(there the scan of the edges, random accesses into a 320,000-policy array, dominates).
+Graphs with more distinct costs, or whose costs are not those of their source policies
+(a policy reached again at a lower cost), are searched with an indexed binary heap
+instead: the same costs, and with positive costs the same next policies. Each search
+allocates about 17 bytes per policy.
 
-On a graph that stores no edges (:class:`gracenav.graph.PreparesGraph` given instead
+On a graph that stores no edges (:class:`gracenav.planning.graph.PreparesGraph` given instead
 of a matrix) the same search generates the edges into each settled policy from the
 lattice, in the same order (ascending rows), so the tree is the same; it costs no
 memory per edge but about ten times the time (each predecessor is a probe of the
@@ -53,7 +54,8 @@ import scipy.sparse
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import ConvexHull, QhullError
 
-from gracenav._search import (
+from gracenav.errors import ConfigError, PlanningError
+from gracenav.planning._search import (
     _BUDGET,
     _NEGATIVE,
     _REVISITED,
@@ -65,8 +67,7 @@ from gracenav._search import (
     _search_queues,
     _search_queues_lattice,
 )
-from gracenav.errors import ConfigError, PlanningError
-from gracenav.graph import CostCriterion, PreparesGraph
+from gracenav.planning.graph import CostCriterion, PreparesGraph
 
 __all__ = [
     "CostCriterion",
@@ -135,8 +136,8 @@ def plan_tree(
     adjacency : scipy.sparse matrix or array, shape (N, N), or PreparesGraph
         Entry (i, j) is the cost of executing policy i when i gracefully
         prepares j; stored entries are edges, explicit zeros included. In CSC form
-        (:meth:`gracenav.graph.PreparesGraph.csc`) its arrays are the reversed graph
-        at no cost; any other form (:meth:`gracenav.graph.PreparesGraph.csr`) is
+        (:meth:`gracenav.planning.graph.PreparesGraph.csc`) its arrays are the reversed graph
+        at no cost; any other form (:meth:`gracenav.planning.graph.PreparesGraph.csr`) is
         converted to CSC on every call, O(N + E). A :class:`PreparesGraph` is searched
         on its stored reversed graph for ``criterion`` if it has built one, otherwise
         on edges generated from the lattice (no memory per edge); the tree is the same.

@@ -6,7 +6,7 @@ A motion primitive is a feasible reference state trajectory of the 3D model.
 duration and connect two trims: their desired position trajectory is a nonic
 polynomial per axis (position and velocity of the two trims at the ends;
 acceleration, jerk and snap zero), treated as the flat output and turned into
-a feasible state trajectory by :func:`gracenav.shape_planner.plan_shape_trajectory`.
+a feasible state trajectory by :func:`gracenav.primitives.shape_planner.plan_shape_trajectory`.
 
 Every primitive of Σ(d) has a net displacement (Δx, Δy) that is an integer
 multiple of d with both components >= 0 (first quadrant); instantiation
@@ -22,7 +22,7 @@ rotated by 90° (the rotated nonic as the desired flat output, same duration);
 rotations by 180° and 270° negate those two plans. The two plans' ball paths
 differ from exact rotations of each other by a fraction of a millimetre.
 
-The set is cached on disk (in :func:`gracenav._cache.cache_dir`) as one ``.npz``
+The set is cached on disk (in :func:`gracenav._util.cache.cache_dir`) as one ``.npz``
 file (no pickle) per key, the key being a hash of the inputs only (parameters,
 d, the options and :data:`CODE_VERSION`), never of a computed result.
 """
@@ -43,12 +43,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from gracenav._cache import cache_dir
-from gracenav._io import atomic_write_bytes
+from gracenav._util.cache import cache_dir
+from gracenav._util.io import atomic_write_bytes
 from gracenav.errors import CacheError, ConfigError
 from gracenav.model.friction import friction_constants, friction_torque
 from gracenav.params import BallbotParams
-from gracenav.shape_planner import (
+from gracenav.primitives.shape_planner import (
     NonicReference,
     ShapePlannerOptions,
     ShapePlannerResult,
@@ -81,7 +81,7 @@ CODE_VERSION = "primitives-1"
 PrimitiveSample = TrajectorySample
 """Samples of a primitive: time (N,), states (N, 8), accelerations (N, 4),
 inputs (N, 2) and ball position state (N, 6) = x, y, ẋ, ẏ, ẍ, ÿ in the
-primitive's own frame (see :class:`gracenav.shape_planner.TrajectorySample`)."""
+primitive's own frame (see :class:`gracenav.primitives.shape_planner.TrajectorySample`)."""
 
 
 def rotation_matrix(k: int) -> FloatArray:

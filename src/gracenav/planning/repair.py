@@ -47,9 +47,9 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from gracenav import graph as _graph
 from gracenav.errors import ConfigError
 from gracenav.planning import LazyPolicyTree, PolicyTree
+from gracenav.planning import graph as _graph
 from gracenav.world.moving import MovingObstacle
 
 if TYPE_CHECKING:
@@ -641,7 +641,7 @@ def _whole(tree: PolicyTree | LazyPolicyTree) -> PolicyTree:
     if isinstance(tree, LazyPolicyTree):
         raise ConfigError(
             f"moving obstacles need the whole single-goal tree, and on this graph "
-            f"({tree.graph.num_edges} edges, above gracenav.graph.STORED_EDGES = "
+            f"({tree.graph.num_edges} edges, above gracenav.planning.graph.STORED_EDGES = "
             f"{_graph.STORED_EDGES}) the hybrid controller computes it lazily: run tasks with "
             "moving obstacles on a smaller map or region (one library per region), or "
             "without moving obstacles"

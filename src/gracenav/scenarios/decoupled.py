@@ -16,7 +16,8 @@ from gracenav.params import BallbotParams
 if TYPE_CHECKING:
     from gracenav.execution import Episode
     from gracenav.palette import Palette
-    from gracenav.scenarios import Scenario, ScenarioResult
+    from gracenav.scenarios.runs import ScenarioResult
+    from gracenav.scenarios.spec import Scenario
 
 __all__ = ["run_decoupled"]
 
@@ -49,14 +50,9 @@ def run_decoupled(
     """
     from gracenav.execution import ExecutionOptions
     from gracenav.palette import load_palette
-    from gracenav.scenarios import (
-        ScenarioResult,
-        _run_starts,
-        apply_plant_factors,
-        check_scenario,
-        load_scenario_map,
-    )
-    from gracenav.simulate import SimulationOptions
+    from gracenav.scenarios.runs import ScenarioResult, _run_starts
+    from gracenav.scenarios.spec import apply_plant_factors, check_scenario, load_scenario_map
+    from gracenav.sim import SimulationOptions
 
     if scenario.kind != "point_to_point":
         raise ConfigError(

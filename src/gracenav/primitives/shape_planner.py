@@ -55,10 +55,10 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import BSpline, PPoly
 
-from gracenav._hermite import quintic_hermite
 from gracenav._kernels import bias as _bias3
 from gracenav._kernels import friction as _friction
 from gracenav._kernels import mass_matrix as _mm3
+from gracenav._util.hermite import quintic_hermite
 from gracenav.control import CONTROL_RATE
 from gracenav.errors import ConfigError
 from gracenav.model.friction import friction_constants

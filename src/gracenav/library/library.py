@@ -43,11 +43,11 @@ from numba import njit, prange
 from numpy.typing import ArrayLike, NDArray
 from scipy import sparse
 
-from gracenav.domains import EllipsoidalDomain
 from gracenav.errors import ConfigError, MapError
 from gracenav.model.indices import PHI, PHI_X_DOT, PHI_Y_DOT
 from gracenav.palette import Palette
 from gracenav.policies import MotionPolicy, PrimitiveKind
+from gracenav.policies.domains import EllipsoidalDomain
 from gracenav.world import WorldMap
 
 # The compiled sweep check runs in parallel. numba's default layer here is GNU OpenMP,
@@ -154,7 +154,7 @@ def _axis_shapes(radii: FloatArray, correlation: FloatArray) -> FloatArray:
     """Per-axis shape matrices M (P, 2, 2) of domains with extents ``radii`` (P, 2)
     (position m, velocity m/s) and position-velocity correlations ``correlation`` (P,):
     M = Σ⁻¹ for Σ = [[e_p², r e_p e_v], [r e_p e_v, e_v²]] (the domain's shape matrix is
-    M ⊗ I₂, see :func:`gracenav.domains.correlated_shape`)."""
+    M ⊗ I₂, see :func:`gracenav.policies.domains.correlated_shape`)."""
     ep, ev, r = radii[:, 0], radii[:, 1], correlation
     det = (ep * ev) ** 2 * (1.0 - r**2)
     out = np.empty((radii.shape[0], 2, 2))
@@ -1603,7 +1603,7 @@ def build_library(
     fastest tick between them and their neighbours).
     Verification does not depend on it (D' is unchanged); it keeps policies from
     heading fast at obstacles, so that a push there leaves room for a catch
-    (:mod:`gracenav.capture`) to stop the robot: a push of 8–16 N s leaves
+    (:mod:`gracenav.execution.capture`) to stop the robot: a push of 8–16 N s leaves
     0.8–1.2 m/s, whose shortest verified catch reaches 0.7–1.2 m. Running along a wall
     costs half the allowance beside it. Rest policies (the goals, and the catches'
     ends) are unaffected.

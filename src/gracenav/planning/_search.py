@@ -1,7 +1,7 @@
 """Compiled (numba) kernels of the motion policy graph: edge generators and searches.
 
 The gracefully prepares graph's edges are generated from the lattice
-(:class:`gracenav.graph.LatticeEdges`) by :func:`predecessors_of` and
+(:class:`gracenav.planning.graph.LatticeEdges`) by :func:`predecessors_of` and
 :func:`_successors_of`; the single-goal tree searches of :mod:`gracenav.planning` run
 either on a stored reversed graph or on those generators. They live in one file because
 numba's on-disk cache notices a change of a kernel's own file only, not of the kernels
@@ -334,7 +334,8 @@ def _search_queues(indptr: Any, indices: Any, weights: Any, goal: int, dist: Any
 @njit(cache=True, nogil=True)
 def _search_queues_lattice(type_cost: Any, goal: int, dist: Any, nxt: Any, *lattice: Any) -> int:
     """:func:`_search_queues` on edges generated from the lattice (``lattice``:
-    :meth:`gracenav.graph.LatticeEdges.kernel_args`, ``type_cost`` the cost of each type)."""
+    :meth:`gracenav.planning.graph.LatticeEdges.kernel_args`, ``type_cost`` the cost of
+    each type)."""
     buf_i, buf_w = _buffers(lattice[4])
     return _queues(buf_i[:1], buf_i, buf_w, goal, dist, nxt, True, type_cost, *lattice)
 

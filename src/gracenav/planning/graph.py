@@ -25,7 +25,7 @@ table lookup on (type, lattice point). No pair of library policies is ever compa
 The edges are not stored: :func:`build_graph` keeps the type tables, each policy's type
 and point, and the lookup table (:class:`LatticeEdges`, about 8 bytes per policy plus
 4 bytes per (point, type) pair), O(N + T²) to build. The successors or predecessors of
-a policy are generated on demand (:mod:`gracenav._search`), and the sparse matrices are
+a policy are generated on demand (:mod:`gracenav.planning._search`), and the sparse matrices are
 built from them on first use. On a 100 m open hall this is the difference between
 175 M edges (about 5 GiB with both costs and the reversed graph) and 140 MiB.
 
@@ -50,9 +50,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
 
-from gracenav._search import _count_edges, _count_rows_edges, _fill_edges, _successors_of
 from gracenav.errors import ConfigError
 from gracenav.library import InstantiatedPolicy, PolicyLibrary
+from gracenav.planning._search import _count_edges, _count_rows_edges, _fill_edges, _successors_of
 
 __all__ = [
     "STORED_EDGES",
@@ -112,7 +112,7 @@ def gracefully_prepares(
     """Φ1 ⪰G Φ2 by the general definition, for any two instantiated policies.
 
     (i) uses the exact ellipsoid containment
-    :meth:`gracenav.domains.EllipsoidalDomain.contains_domain` (tolerance 1e-9 on the
+    :meth:`gracenav.policies.domains.EllipsoidalDomain.contains_domain` (tolerance 1e-9 on the
     quadratic form); (ii) compares the world-frame reference rows (x, y, ẋ, ẏ, ẍ, ÿ)
     and lean / lean rate at t_f1 and 0 within ``atol``; (iii) compares the gains.
     Meant for checks and tests: :func:`build_graph` decides the same relation in bulk.

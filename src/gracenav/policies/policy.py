@@ -8,7 +8,7 @@ G = D(t_f) the goal domain.
 
 Domain shape. Along each axis a domain couples position and velocity
 deviations: Σ = [[e_p², r e_p e_v], [r e_p e_v, e_v²]] ⊗ I₂ with extents e_p
-(m), e_v (m/s) and correlation r (:func:`gracenav.domains.correlated_shape`),
+(m), e_v (m/s) and correlation r (:func:`gracenav.policies.domains.correlated_shape`),
 so it is invariant under the 90° rotations of instantiation. The ratio
 e_v/e_p and r are the same for every policy and come from the closed loop
 (:func:`domain_shape`): the ellipse that the linearised closed loop, started
@@ -47,15 +47,20 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from gracenav.control import CONTROL_RATE, ControllerGains, design_gains
-from gracenav.domains import EllipsoidalDomain, correlated_shape, sphere_points
 from gracenav.errors import ConfigError
 from gracenav.params import BallbotParams
-from gracenav.simulate import (
+from gracenav.policies.domains import EllipsoidalDomain, correlated_shape, sphere_points
+from gracenav.sim import (
+    Disturbance,
     Reference,
+    SimulationOptions,
+    SimulationResult,
     position_state,
+    simulate,
     simulate_batch,
     state_from_position,
 )
+from gracenav.sim.plant import PlantKind
 
 __all__ = [
     "BrakingOptions",
@@ -77,6 +82,7 @@ __all__ = [
     "regulator_label",
     "regulator_policies",
     "rotate_pairs_by",
+    "run_policy",
     "scaled_variants",
     "size_policy",
     "variant_label",
@@ -290,7 +296,7 @@ class SampledPrimitive:
         """Rebuild the samples at every tick from every ``stride``-th one.
 
         q, q̇ and q̈ between stored ticks come from the quintic Hermite interpolant
-        (:mod:`gracenav._hermite`) of (q, q̇, q̈) at both ends (error ~h⁶ q⁽⁶⁾, below
+        (:mod:`gracenav._util.hermite`) of (q, q̇, q̈) at both ends (error ~h⁶ q⁽⁶⁾, below
         1e-10 rad for these smooth trajectories); the torques are recomputed from the 3D
         equations of motion so the rebuilt samples satisfy them. See :meth:`from_coarse_many`.
         """
@@ -317,8 +323,8 @@ class SampledPrimitive:
         ``items``: (states, accelerations, stride, meta) with ``meta`` holding the
         keyword arguments name, kind, dt, displacement, start_velocity, end_velocity.
         """
-        from gracenav._hermite import quintic_hermite_basis
         from gracenav._kernels import rebuild_fine
+        from gracenav._util.hermite import quintic_hermite_basis
         from gracenav.model.ballbot3d import Ballbot3D
         from gracenav.model.friction import friction_constants
 
@@ -484,7 +490,7 @@ class RegulatorOptions:
 
 @dataclass(frozen=True)
 class BrakingOptions:
-    """The palette's braking maneuvers (see :mod:`gracenav.braking`).
+    """The palette's braking maneuvers (see :mod:`gracenav.primitives.braking`).
 
     Parameters
     ----------
@@ -564,7 +570,7 @@ class BrakingOptions:
 @dataclass(frozen=True)
 class CatchOptions:
     """The palette's catches and shifts: capture at the robot's own state (see
-    :mod:`gracenav.catches`).
+    :mod:`gracenav.policies.catches`).
 
     Parameters
     ----------
@@ -579,9 +585,9 @@ class CatchOptions:
         Bounds of a catch's deceleration time (s).
     ramps : tuple of float
         Rise times (s) of the smooth trapezoidal decelerations
-        (:class:`~gracenav.shape_planner.BrakeReference`) planned for each catch
+        (:class:`~gracenav.primitives.shape_planner.BrakeReference`) planned for each catch
         besides the nonic smooth step and the shortest-reach braking
-        (:class:`~gracenav.shape_planner.ShortestBrakeReference`, one per torque
+        (:class:`~gracenav.primitives.shape_planner.ShortestBrakeReference`, one per torque
         share); the candidates are verified in the order of how far ahead their path
         reaches, and the first that verifies is kept.
     pushed_torque_shares, settled_torque_shares : tuple of float
@@ -811,7 +817,7 @@ def push_lean_table(
     """Push the regulated robot at rest along +x with each impulse (N s) and sample its
     speed, lean and lean rate ``times`` (s) after the push (see :class:`PushLeanTable`).
     """
-    from gracenav.simulate import Push, simulate
+    from gracenav.sim import Push, simulate
 
     plant = params if params is not None else gains.params
     r = gains.params.ball_radius
@@ -860,10 +866,10 @@ class VerificationOptions:
         The palette's capture regulators (None: none).
     braking : BrakingOptions or None
         The palette's braking maneuvers (None, the default: none; see
-        :mod:`gracenav.braking` for what they add and what they cost).
+        :mod:`gracenav.primitives.braking` for what they add and what they cost).
     catch : CatchOptions or None
         The palette's catches and shifts, placed at the robot's own state
-        (:mod:`gracenav.catches`); None: none.
+        (:mod:`gracenav.policies.catches`); None: none.
     """
 
     boundary_points: int = 64
@@ -1153,8 +1159,8 @@ def flat_position_state(
 ) -> FloatArray:
     """The flat output's position state (y, ẏ) = (x + L φ, ẋ + L φ̇) per axis, for
     ball position states (..., 4) and leans and lean rates (..., 2) measured from the
-    plan's (rad, rad/s); L from :func:`gracenav.shape_planner.flat_output_lengths`."""
-    from gracenav.shape_planner import flat_output_lengths
+    plan's (rad, rad/s); L from :func:`gracenav.primitives.shape_planner.flat_output_lengths`."""
+    from gracenav.primitives.shape_planner import flat_output_lengths
 
     length = flat_output_lengths(params)
     p = np.array(position_state, dtype=float)
@@ -1167,7 +1173,7 @@ def capture_point(flat_state: ArrayLike, params: BallbotParams) -> FloatArray:
     """The instantaneous capture point ξ = y + ẏ/ω (m) per axis of flat-output position
     states (..., 4) (:func:`flat_position_state`), shape (..., 2).
 
-    For the linearised model ÿ = κ φ (:func:`~gracenav.shape_planner.flat_output_gain`)
+    For the linearised model ÿ = κ φ (:func:`~gracenav.primitives.shape_planner.flat_output_gain`)
     and y − x = L φ give ÿ = ω² (y − x), ω = √(κ/L), with x the ball; so ξ̇ = ω (ξ − x).
     A motion that comes to rest keeps ξ bounded, which needs
     ξ(0) = ω ∫₀^∞ e^(−ωt) x(t) dt: a weighted mean of the ball's positions to come.
@@ -1175,7 +1181,7 @@ def capture_point(flat_state: ArrayLike, params: BallbotParams) -> FloatArray:
     as far as its capture point along every direction (ξ lies in the path's convex
     hull): a bound on how near an obstacle a moving robot can stop.
     """
-    from gracenav.shape_planner import flat_output_gain, flat_output_lengths
+    from gracenav.primitives.shape_planner import flat_output_gain, flat_output_lengths
 
     omega = np.sqrt(flat_output_gain(params) / flat_output_lengths(params))
     y = np.asarray(flat_state, dtype=float)
@@ -1226,7 +1232,7 @@ def verify_policy(
         variants = [x0]
         flat_length = None
         if policy.flat_start:
-            from gracenav.shape_planner import flat_output_lengths
+            from gracenav.primitives.shape_planner import flat_output_lengths
 
             flat_length = float(np.mean(flat_output_lengths(policy.gains.params)))
         for k in range(push_leans.times.size):
@@ -1540,7 +1546,7 @@ def switch_torque_jumps(
     """Simulate every connecting pair Φ₁ ⪰ Φ₂ (σ₁(t_f) = σ₂(0) through acceleration,
     after rotating Φ₂) from the centre of S₁ and measure the commanded torque jump at
     the switch (paper Sec. III-C (iii): φ₁(t_f1) = φ₂(0) makes it continuous)."""
-    from gracenav.simulate import simulate
+    from gracenav.sim import simulate
 
     out = []
     for a in policies:
@@ -1567,3 +1573,53 @@ def switch_torque_jumps(
                 other = float(np.max(np.delete(steps, n))) if steps.size > 1 else 0.0
                 out.append(SwitchJump(a.name, b.name, k, jump, other))
     return out
+
+
+def run_policy(
+    policy: MotionPolicy,
+    p0: ArrayLike,
+    plant: PlantKind = "model3d",
+    *,
+    params: BallbotParams | None = None,
+    disturbances: Sequence[Disturbance] = (),
+    options: SimulationOptions | None = None,
+) -> SimulationResult:
+    """Simulate one motion policy (in its own frame) from the position state ``p0``.
+
+    The body starts with the lean and lean rate its primitive plans at t = 0 (as in
+    verification) and the policy's control law tracks its primitive for its duration;
+    D'(t) is monitored (``max_domain_value``) but the run does not stop on exit.
+
+    Parameters
+    ----------
+    policy : MotionPolicy
+    p0 : array_like, shape (4,)
+        Initial position state (x, y, ẋ, ẏ) (m, m/s).
+    plant : {"model3d", "mujoco"}
+    params : BallbotParams, optional
+        Plant parameters (default: the policy's nominal ones).
+    disturbances : sequence of Disturbance
+    options : SimulationOptions, optional
+
+    Returns
+    -------
+    SimulationResult
+        ``time`` (N,), ``states`` (N, 8), ``position_state`` (N, 4), ...
+    """
+    p = np.asarray(p0, dtype=float)
+    if p.shape != (4,):
+        raise ConfigError(f"p0 must be a position state (x, y, xdot, ydot), got shape {p.shape}")
+    prim = policy.primitive
+    x0 = state_from_position(
+        p, policy.gains.params.ball_radius, lean=prim.states[0, 2:4], lean_rate=prim.states[0, 6:8]
+    )
+    return simulate(
+        x0,
+        prim.reference(),
+        policy.gains,
+        params=params,
+        plant=plant,
+        disturbances=disturbances,
+        options=options,
+        monitor=policy.outer_monitor(),
+    )

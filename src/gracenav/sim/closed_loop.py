@@ -4,7 +4,7 @@ A fixed-step RK4 integrates the 3D model; the controller runs at a fixed rate
 (default 1024 Hz, a step exact in binary) and its torque is held between
 ticks (zero-order hold) and saturated at the torque limit. Single runs and
 batches of initial conditions run through the same compiled loop; a MuJoCo
-plant runs the same control law through :mod:`gracenav.mujoco_plant`.
+plant runs the same control law through :mod:`gracenav.sim.mujoco`.
 
 States are x = [θ_x, θ_y, φ_x, φ_y, θ̇_x, θ̇_y, φ̇_x, φ̇_y] (see
 ``docs/design.md``); position states p = [x, y, ẋ, ẏ] with x = r_w (θ_x + φ_x).
@@ -16,7 +16,6 @@ import enum
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -26,9 +25,6 @@ from gracenav.errors import ConfigError
 from gracenav.model.friction import friction_constants
 from gracenav.params import BallbotParams
 from gracenav.sim.plant import PLANT_KINDS, PlantKind
-
-if TYPE_CHECKING:
-    from gracenav.policies import MotionPolicy
 
 __all__ = [
     "DEFAULT_FALL_LEAN",
@@ -43,7 +39,6 @@ __all__ = [
     "StateJump",
     "StopReason",
     "position_state",
-    "run_policy",
     "simulate",
     "simulate_batch",
     "state_from_position",
@@ -571,7 +566,7 @@ def _simulate_mujoco(
     """The closed loop with MuJoCo as the plant (same control law, Python loop)."""
     from gracenav import _kernels
     from gracenav.model.ballbot3d import Ballbot3D
-    from gracenav.mujoco_plant import MujocoBallbot
+    from gracenav.sim.mujoco import MujocoBallbot
 
     nt = reference.num_ticks
     dt = reference.dt
@@ -646,54 +641,4 @@ def _simulate_mujoco(
         saturated_ticks=saturated,
         max_domain_value=max_dom,
         stop_reason=_stop_reason(stop_on_exit, exit_tick, fall_tick),
-    )
-
-
-def run_policy(
-    policy: MotionPolicy,
-    p0: ArrayLike,
-    plant: PlantKind = "model3d",
-    *,
-    params: BallbotParams | None = None,
-    disturbances: Sequence[Disturbance] = (),
-    options: SimulationOptions | None = None,
-) -> SimulationResult:
-    """Simulate one motion policy (in its own frame) from the position state ``p0``.
-
-    The body starts with the lean and lean rate its primitive plans at t = 0 (as in
-    verification) and the policy's control law tracks its primitive for its duration;
-    D'(t) is monitored (``max_domain_value``) but the run does not stop on exit.
-
-    Parameters
-    ----------
-    policy : MotionPolicy
-    p0 : array_like, shape (4,)
-        Initial position state (x, y, ẋ, ẏ) (m, m/s).
-    plant : {"model3d", "mujoco"}
-    params : BallbotParams, optional
-        Plant parameters (default: the policy's nominal ones).
-    disturbances : sequence of Disturbance
-    options : SimulationOptions, optional
-
-    Returns
-    -------
-    SimulationResult
-        ``time`` (N,), ``states`` (N, 8), ``position_state`` (N, 4), ...
-    """
-    p = np.asarray(p0, dtype=float)
-    if p.shape != (4,):
-        raise ConfigError(f"p0 must be a position state (x, y, xdot, ydot), got shape {p.shape}")
-    prim = policy.primitive
-    x0 = state_from_position(
-        p, policy.gains.params.ball_radius, lean=prim.states[0, 2:4], lean_rate=prim.states[0, 6:8]
-    )
-    return simulate(
-        x0,
-        prim.reference(),
-        policy.gains,
-        params=params,
-        plant=plant,
-        disturbances=disturbances,
-        options=options,
-        monitor=policy.outer_monitor(),
     )

@@ -1,7 +1,7 @@
 """Capture at the robot's own state: catches and shifts placed on a library.
 
 A push can leave the robot in a moving state outside every start domain S of the
-library. The palette's catches and shifts (:mod:`gracenav.catches`, which designs
+library. The palette's catches and shifts (:mod:`gracenav.policies.catches`, which designs
 and verifies them) are placed where the robot is instead: a catch is turned near the
 robot's heading and moved so that it ends on a fine grid (spacing d /
 ``grid_divisions``, anchored where the library's lattice is); of the headings that
@@ -26,16 +26,17 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from gracenav.catches import PUSHED, SETTLED, STILL, lean_class_of
-from gracenav.domains import EllipsoidalDomain
 from gracenav.library import PolicyLibrary, sweep_samples
 from gracenav.policies import MotionPolicy, PrimitiveKind, SampledPrimitive, rotate_pairs_by
-from gracenav.simulate import Reference
+from gracenav.policies.catches import PUSHED, SETTLED, STILL, lean_class_of
+from gracenav.policies.domains import EllipsoidalDomain
+from gracenav.sim import Reference
 
 __all__ = [
     "Capture",
     "CapturePlan",
     "PlacedPolicy",
+    "TerminalPolicy",
     "capture_for",
 ]
 
@@ -574,3 +575,33 @@ class Capture:
         return np.array(
             [self.plan(s, lean_deviation=(0.0, 0.0)) is not None for s in pts], dtype=bool
         )
+
+
+@dataclass(frozen=True)
+class TerminalPolicy(PlacedPolicy):
+    """A capture regulator of the palette placed at a goal off the lattice: a
+    :class:`~gracenav.execution.capture.PlacedPolicy` at heading 0 whose reference starts (and
+    holds) at the goal.
+
+    Attributes
+    ----------
+    approach : int
+        The library rest trim the task reaches first; its G lies in this S.
+    """
+
+    approach: int
+
+    @property
+    def goal_xy(self) -> NDArray[np.float64]:
+        """Where it holds the robot (m)."""
+        return self.start_xy
+
+    def outer_domain(self, t: float) -> EllipsoidalDomain:
+        """D'(t) in the world frame."""
+        return self._world(self.policy.outer_domain(t))
+
+    @property
+    def name(self) -> str:
+        """E.g. ``regulate[ep=0.55m]@(1.23, 2.5)``."""
+        x, y = self.goal_xy
+        return f"{self.policy.name}@({x:g}, {y:g})"

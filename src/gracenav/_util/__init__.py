@@ -1,0 +1,1 @@
+"""Private helpers: files and caches, input validation, progress bars, interpolation."""

@@ -1,0 +1,89 @@
+"""A scenario's outputs: summary.json, trajectory.csv, events.csv and figures, written
+as a unit."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from gracenav._util.io import atomic_write_text
+from gracenav.scenarios.runs import ScenarioResult, _json_value
+
+__all__ = ["summary_dict", "write_outputs"]
+
+
+def summary_dict(result: ScenarioResult) -> dict[str, Any]:
+    """The content of ``summary.json`` (strict JSON: no NaN, None where not applicable)."""
+    sc = result.scenario
+    return {
+        "scenario": sc.name,
+        "source": sc.source,
+        "task": sc.kind,
+        "plant": sc.plant,
+        "plant_param_factors": dict(sc.plant_factors),
+        "plant_params": None if result.plant_params is None else result.plant_params.to_dict(),
+        "library_size": result.library_size,
+        "speed_clearance_s": sc.speed_clearance,
+        "graph_edges": result.graph_edges,
+        "coverage": _json_value(result.coverage),
+        "library_and_graph_s": result.library_seconds,
+        "runs": [r.to_dict() for r in result.runs],
+    }
+
+
+def write_outputs(result: ScenarioResult, out: str | Path, *, animation: bool = True) -> list[Path]:
+    """Write summary.json, trajectory.csv, events.csv, figures and an animation into ``out``.
+
+    Each file is written atomically; to publish the set as a unit, write into a
+    staging directory (the ``gracenav run`` command does). Returns the written paths.
+    """
+    from gracenav.plotting.navigation import animate_episode, plot_lean, plot_paths
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    path = out / "summary.json"
+    atomic_write_text(path, json.dumps(summary_dict(result), indent=2, allow_nan=False) + "\n")
+    written.append(path)
+    rows = ["run,t,x,y,xdot,ydot,lean_x,lean_y,tau_x,tau_y,ref_x,ref_y,policy"]
+    for k, ep in enumerate(result.episodes):
+        p = ep.position_state
+        for i in range(ep.time.size):
+            pol = int(ep.policy[i])
+            rows.append(
+                f"{k},{ep.time[i]:.6f},{p[i, 0]:.6f},{p[i, 1]:.6f},{p[i, 2]:.6f},{p[i, 3]:.6f},"
+                f"{ep.lean[i, 0]:.6e},{ep.lean[i, 1]:.6e},{ep.inputs[i, 0]:.5f},"
+                f"{ep.inputs[i, 1]:.5f},{ep.reference[i, 0]:.6f},{ep.reference[i, 1]:.6f},{pol}"
+            )
+    path = out / "trajectory.csv"
+    atomic_write_text(path, "\n".join(rows) + "\n")
+    written.append(path)
+
+    def name(i: int) -> str:
+        return result.library.policy(i).name if i >= 0 else ""
+
+    ev = ["run,time,from,to,from_name,to_name,reason,latency_ms"]
+    for k, ep in enumerate(result.episodes):
+        lines = [
+            (
+                e.time,
+                0,
+                f"{k},{e.time:.6f},{e.from_policy},{e.to_policy},{name(e.from_policy)},"
+                f"{name(e.to_policy)},{e.reason.value},",
+            )
+            for e in ep.events
+        ]
+        lines += [  # replans: reason replan:<why>, and the wall time of the repair
+            (rp.time, 1, f"{k},{rp.time:.6f},,,,,replan:{rp.reason},{1000 * rp.latency_s:.3f}")
+            for rp in getattr(ep, "replans", ())
+        ]
+        ev += [line for _, _, line in sorted(lines, key=lambda v: (v[0], v[1]))]
+    path = out / "events.csv"
+    atomic_write_text(path, "\n".join(ev) + "\n")
+    written.append(path)
+    written.append(plot_paths(result, out / "paths.png"))
+    written.append(plot_lean(result, out / "lean.png"))
+    if animation:
+        written.append(animate_episode(result, 0, out / "animation.gif"))
+    return written

@@ -1,0 +1,251 @@
+"""Running a scenario: its library prepared once, every start run by the hybrid
+controller (or the decoupled baseline, :mod:`gracenav.scenarios.decoupled`)."""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from gracenav.params import BallbotParams
+from gracenav.planning.repair import ObstacleSensing
+from gracenav.scenarios.runs import ScenarioResult, _run_starts
+from gracenav.scenarios.spec import Scenario, apply_plant_factors, check_scenario, load_scenario_map
+from gracenav.sim import SimulationOptions
+
+__all__ = ["PreparedLibrary", "check_task", "library_key", "prepare_library", "run_scenario"]
+
+
+@dataclass(frozen=True)
+class PreparedLibrary:
+    """A scenario's map, policy library and prepares graph, built once and shared by
+    runs that differ only in their task, disturbances or simulation (campaign trials).
+
+    Attributes
+    ----------
+    key : str
+        What the library depends on: the palette's key, the map, the footprint, the
+        halving limit and the library seed (:func:`library_key`).
+    world_map, library, graph
+    seconds : float
+        Wall time of building the library and the graph (s).
+    """
+
+    key: str
+    world_map: Any = field(repr=False)
+    library: Any = field(repr=False)
+    graph: Any = field(repr=False)
+    seconds: float
+
+
+def library_key(scenario: Scenario, palette: Any) -> str:
+    """What a scenario's library depends on, as a string (inputs only, no computed
+    float): palette key, map source, footprint, halving limit, library seed and
+    stopping allowance."""
+    src = scenario.map_source
+    where = json.dumps(src, sort_keys=True) if isinstance(src, dict) else str(src)
+    return json.dumps(
+        [
+            palette.key,
+            where,
+            repr(scenario.footprint_radius),
+            scenario.max_halvings,
+            scenario.library_seed,
+            repr(scenario.speed_clearance),
+        ]
+    )
+
+
+def prepare_library(scenario: Scenario, palette: Any | None = None) -> PreparedLibrary:
+    """Check the scenario and build its library and graph.
+
+    Raises
+    ------
+    ConfigError, MapError, PlanningError
+        From the map and :func:`check_scenario`, before the library is built.
+    """
+    from gracenav.library import build_library
+    from gracenav.palette import load_palette
+    from gracenav.planning.graph import build_graph
+
+    palette = palette if palette is not None else load_palette()
+    world_map = load_scenario_map(scenario)
+    check_scenario(scenario, world_map, palette)
+    t0 = time.perf_counter()
+    library = build_library(
+        palette,
+        world_map,
+        footprint_radius=scenario.footprint_radius,
+        max_halvings=scenario.max_halvings,
+        seed=scenario.library_seed,
+        speed_clearance=scenario.speed_clearance,
+    )
+    graph = build_graph(library)
+    return PreparedLibrary(
+        key=library_key(scenario, palette),
+        world_map=world_map,
+        library=library,
+        graph=graph,
+        seconds=time.perf_counter() - t0,
+    )
+
+
+def run_scenario(
+    scenario: Scenario,
+    *,
+    palette: Any | None = None,
+    params: BallbotParams | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    prepared: PreparedLibrary | None = None,
+) -> ScenarioResult:
+    """Build the library on the scenario's map and run every start of its task.
+
+    A scenario with ``planner.kind: decoupled`` runs the plan-then-track baseline
+    instead (:func:`gracenav.baseline.run_decoupled`, no library).
+
+    Parameters
+    ----------
+    scenario : Scenario
+    palette : Palette, optional
+        Default: the shipped palette.
+    params : BallbotParams, optional
+        Physical parameters of the simulated robot (default: the palette's), to which
+        the scenario's ``simulation.plant_params`` factors then apply (they scale these
+        parameters, not the palette's); the controllers keep the palette's design, so
+        different values test robustness.
+        Each run starts where the controller believes the start is (encoder angles
+        times its nominal ball radius); with another ``ball_radius`` the episode's
+        position states (the plant's) differ from it by the ratio of the radii.
+    progress : callable(done, total), optional
+        Called after each run.
+    prepared : PreparedLibrary, optional
+        The library of an earlier :func:`prepare_library` call for the same map,
+        footprint, halvings, library seed and palette (checked by its key); default:
+        built here.
+
+    Raises
+    ------
+    ConfigError, PlanningError
+        From :func:`check_scenario`, before the library is built.
+    ValueError
+        ``prepared`` was built for another map, footprint, palette, library seed or
+        stopping allowance.
+    """
+    from gracenav.execution import HybridController
+    from gracenav.palette import load_palette
+    from gracenav.sim import make_plant
+
+    palette = palette if palette is not None else load_palette()
+    if scenario.planner == "decoupled":
+        from gracenav.scenarios.decoupled import run_decoupled
+
+        return run_decoupled(scenario, palette=palette, params=params, progress=progress)
+    plant_params = apply_plant_factors(scenario, params if params is not None else palette.params)
+    if prepared is None:
+        prepared = prepare_library(scenario, palette)
+    elif prepared.key != library_key(scenario, palette):
+        raise ValueError(
+            "prepared library was built for another map, footprint, halving limit, library "
+            "seed, speed clearance or palette than this scenario's"
+        )
+    else:
+        check_scenario(scenario, prepared.world_map, palette)
+    world_map, library, graph = prepared.world_map, prepared.library, prepared.graph
+    options = _execution_options(scenario)
+    radius = palette.params.ball_radius  # the controller's: the robot starts where it believes
+    probe = HybridController(library, graph, criterion=scenario.cost)
+    _check_task(scenario, probe, options)
+
+    def run(x0: np.ndarray) -> Any:
+        hc = HybridController(library, graph, criterion=scenario.cost)
+        sim = options.simulation
+        plant = make_plant(
+            scenario.plant,
+            plant_params,
+            substeps=sim.substeps,
+            position_noise_std=sim.position_noise_std,
+            velocity_noise_std=sim.velocity_noise_std,
+            seed=sim.seed,
+        )
+        return hc.run(
+            x0,
+            scenario.goals,
+            loops=scenario.loops,
+            disturbances=scenario.disturbances,
+            options=options,
+            moving_obstacles=scenario.moving_obstacles,
+            plant=plant,
+        )
+
+    episodes, runs = _run_starts(scenario, world_map, plant_params, radius, run, progress)
+    return ScenarioResult(
+        scenario=scenario,
+        episodes=episodes,
+        runs=runs,
+        library_size=len(library),
+        graph_edges=graph.num_edges,
+        coverage=float(library.coverage),
+        library_seconds=prepared.seconds,
+        world_map=world_map,
+        library=library,
+        plant_params=plant_params,
+    )
+
+
+def _execution_options(scenario: Scenario) -> Any:
+    from gracenav.execution import ExecutionOptions
+
+    return ExecutionOptions(
+        plant=scenario.plant,
+        max_time=scenario.max_time,
+        simulation=SimulationOptions(
+            position_noise_std=scenario.position_noise_std, seed=scenario.seed
+        ),
+        resume_from_balancing=scenario.resume_from_balancing,
+        capture=scenario.capture,
+        sensing=ObstacleSensing(range=scenario.sensing_range),
+    )
+
+
+def check_task(scenario: Scenario, prepared: PreparedLibrary, palette: Any | None = None) -> None:
+    """Check that every goal and every start of the scenario's task is possible with the
+    library ``prepared`` (as :func:`run_scenario` does before its first run).
+
+    Raises
+    ------
+    PlanningError
+        Naming the key of the first impossible goal or start and why.
+    """
+    from gracenav.execution import HybridController
+    from gracenav.palette import load_palette
+
+    palette = palette if palette is not None else load_palette()
+    hc = HybridController(prepared.library, prepared.graph, criterion=scenario.cost)
+    _check_task(scenario, hc, _execution_options(scenario))
+
+
+def _check_task(scenario: Scenario, hc: Any, options: Any) -> None:
+    """Every goal and every start must be possible before the first run starts: a bad
+    third start should not cost the first two runs. Each start is probed by starting
+    the task (:meth:`HybridController.reset`); the message names the key."""
+    from gracenav.errors import PlanningError
+    from gracenav.sim import state_from_position
+
+    ptp = scenario.kind == "point_to_point"
+    for j, goal in enumerate(scenario.goals):
+        try:
+            hc.goal_policy(goal)
+        except PlanningError as exc:
+            key = "task.goal" if ptp else f"task.goals[{j}]"
+            raise PlanningError(f"{scenario.source}: '{key}': {exc}") from None
+    for i, start in enumerate(scenario.starts):
+        x0 = state_from_position(np.asarray(start), hc.gains.params.ball_radius)
+        try:
+            hc.reset(x0, scenario.goals, options=options)
+        except PlanningError as exc:
+            key = f"task.starts[{i}]" if ptp else "task.start"
+            raise PlanningError(f"{scenario.source}: '{key}': {exc}") from None
