@@ -1,0 +1,535 @@
+"""Automatic instantiation (paper Sec. V-A): the palette placed on a lattice of the map
+at spacing d, d/2, ... wherever the swept domains clear the obstacles, within a memory
+budget checked before anything is allocated."""
+
+from __future__ import annotations
+
+import math
+import time
+import weakref
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from gracenav.errors import ConfigError
+from gracenav.library.library import DEFAULT_COVERAGE_SAMPLES, PolicyLibrary, sample_position_states
+from gracenav.library.sweeps import _check_sweeps, _sweep, _sweep_tables, sweep_samples
+from gracenav.library.types import (
+    _LATTICE_EPS,
+    BoolArray,
+    FloatArray,
+    InstantiationIteration,
+    IntArray,
+    PolicyTypes,
+    _readonly,
+)
+from gracenav.palette import Palette
+from gracenav.world import WorldMap
+
+__all__ = [
+    "DEFAULT_MEMORY_LIMIT",
+    "DEFAULT_SPEED_CLEARANCE",
+    "MAX_SPEED_CLEARANCE",
+    "POLICY_BYTES",
+    "build_library",
+    "estimate_library_size",
+    "max_trim_speed",
+]
+
+#: Peak memory per library policy (bytes) of building the library, its graph with the
+#: edges generated from the lattice and one search, measured on a 100 m open hall
+#: (6.28 M policies, 1.56 GiB peak of which 0.31 GiB before the library).
+POLICY_BYTES = 208
+
+#: Default memory limit (bytes) of :func:`build_library`: 4 GiB.
+DEFAULT_MEMORY_LIMIT = 4 * 2**30
+
+#: Default stopping allowance of :func:`build_library` (s): extra clearance per m/s of
+#: reference speed toward an obstacle. With it every one of 900 seeded pushes (0–16 N s
+#: on the 5 m room, bench/bench_pushes.py) is caught by a verified policy, against 97.0–
+#: 98.7 % without; the unpushed run there takes 1 % longer. Larger allowances cut off
+#: narrow passages: of 400 random rest-to-rest pairs on the cluttered 6 m room, 131 are
+#: possible without, 130 with 0.1 s, 118 with 0.2 s and 104 with 0.3 s; on a 50 m office
+#: with 1 m doors the corridors' strongly connected part loses 30 % of its policies.
+DEFAULT_SPEED_CLEARANCE = 0.1
+
+#: Largest stopping allowance accepted (s).
+MAX_SPEED_CLEARANCE = 2.0
+
+#: The palette's types and swept outer domain tables of one sweep step and speed clearance.
+_Tables = tuple[PolicyTypes, dict[str, NDArray[Any]]]
+
+
+class _PaletteTables:
+    """Instantiation's tables of each live palette, by sweep step and speed clearance
+    (``f"{step!r}-{speed_clearance!r}"``).
+
+    A palette is keyed by identity (it is not hashable) and held weakly: its entry goes
+    when it is collected. The tables hold no reference to the palette.
+    """
+
+    def __init__(self) -> None:
+        self._entries: dict[int, tuple[weakref.ref[Palette], dict[str, _Tables]]]
+        self._entries = {}
+
+    def of(self, palette: Palette) -> dict[str, _Tables]:
+        """The tables computed so far for ``palette`` (a dict to add to)."""
+        key = id(palette)
+        got = self._entries.get(key)
+        if got is not None and got[0]() is palette:
+            return got[1]
+        entries = self._entries
+
+        def forget(ref: weakref.ref[Palette]) -> None:
+            if key in entries and entries[key][0] is ref:
+                del entries[key]
+
+        tables: dict[str, _Tables] = {}
+        entries[key] = (weakref.ref(palette, forget), tables)
+        return tables
+
+
+_PALETTE_TABLES = _PaletteTables()
+
+
+def _palette_tables(palette: Palette, step: float, speed_clearance: float) -> _Tables:
+    """The palette's types and swept outer domain tables for sweep step ``step`` and
+    ``speed_clearance``: they depend on the palette only, so they are computed once per
+    palette, step and speed clearance."""
+    cache = _PALETTE_TABLES.of(palette)
+    key = f"{step!r}-{speed_clearance!r}"
+    cached = cache.get(key)
+    if cached is None:
+        samples: dict[int, tuple[FloatArray, FloatArray, IntArray]] = {}
+        sweeps = []
+        for pol in palette.policies:
+            got = samples.get(id(pol.primitive))
+            if got is None:
+                got = samples[id(pol.primitive)] = sweep_samples(pol, step, 0.5 * speed_clearance)
+            sweeps.append(_sweep(pol, step, got, speed_clearance))
+        cached = cache[key] = (
+            PolicyTypes.from_palette(palette),
+            _sweep_tables(sweeps),
+        )
+    return cached
+
+
+def _lattice(world_map: WorldMap, spacing: float) -> tuple[FloatArray, int, int, FloatArray]:
+    """Origin (2,), nx, ny and the points (ny · nx, 2) of the instantiation lattice."""
+    (x0, y0), (x1, y1) = world_map.bounds
+    nx = math.floor((x1 - x0) / spacing + _LATTICE_EPS) + 1
+    ny = math.floor((y1 - y0) / spacing + _LATTICE_EPS) + 1
+    origin = np.array([x0, y0])
+    ix = np.tile(np.arange(nx), ny)
+    iy = np.repeat(np.arange(ny), nx)
+    pts = np.column_stack([x0 + ix * spacing, y0 + iy * spacing])
+    return origin, nx, ny, pts
+
+
+def _instantiate(
+    palette: Palette,
+    types: PolicyTypes,
+    tables: dict[str, NDArray[Any]],
+    world_map: WorldMap,
+    spacing: float,
+    footprint: float,
+    sweep_step: float,
+) -> PolicyLibrary:
+    origin, nx, ny, points = _lattice(world_map, spacing)
+    c0 = world_map.clearance(points)
+    n_points = points.shape[0]
+    # Start domain sizes from the largest down: a scale group (a policy and its larger
+    # variants at one orientation) takes at each point the largest size that fits, so
+    # a smaller size is only checked where every larger one failed.
+    taken = np.zeros((int(types.scale_group.max(initial=-1)) + 1, n_points), dtype=bool)
+    found_t: list[IntArray] = []
+    found_q: list[IntArray] = []
+    for size in np.unique(types.start_radii[:, 0])[::-1]:
+        sure_t: list[IntArray] = []
+        sure_q: list[IntArray] = []
+        undecided_t: list[IntArray] = []
+        undecided_q: list[IntArray] = []
+        # A capture regulator is invariant under rotations (rest reference, round
+        # domains in the plane): one orientation suffices.
+        placed = (types.start_radii[:, 0] == size) & _placed_types(types)
+        for t in np.flatnonzero(placed):
+            maybe = np.flatnonzero(
+                (c0 >= footprint + tables["sample_first_reach"][t]) & ~taken[types.scale_group[t]]
+            )
+            sure = c0[maybe] >= footprint + tables["type_total_reach"][t]
+            sure_q.append(maybe[sure])
+            sure_t.append(np.full(int(np.count_nonzero(sure)), t, dtype=np.int64))
+            undecided_q.append(maybe[~sure])
+            undecided_t.append(np.full(int(np.count_nonzero(~sure)), t, dtype=np.int64))
+        ut, uq = np.concatenate(undecided_t), np.concatenate(undecided_q)
+        ok = _check_sweeps(world_map, points, ut, uq, tables, footprint)
+        lt = np.concatenate([*sure_t, ut[ok]])
+        lq = np.concatenate([*sure_q, uq[ok]])
+        taken[types.scale_group[lt], lq] = True
+        found_t.append(lt)
+        found_q.append(lq)
+    if found_t:
+        all_t, all_q = np.concatenate(found_t), np.concatenate(found_q)
+        # Type-major, point-ascending order.
+        order = np.lexsort((all_q, all_t))
+        typ, pt = all_t[order], all_q[order]
+    else:
+        typ = pt = np.zeros(0, dtype=np.int64)
+    p_idx = types.palette_index[typ]
+    k_idx = types.orientation[typ]
+    cell = np.column_stack([pt % nx, pt // nx]).astype(np.int64)
+    start_xy = points[pt] if pt.size else np.zeros((0, 2))
+    start_state = np.concatenate([start_xy, types.start_velocity[typ]], axis=1)
+    end_state = np.concatenate([start_xy + types.end_offset[typ], types.end_velocity[typ]], axis=1)
+    return PolicyLibrary(
+        palette=palette,
+        world_map=world_map,
+        footprint_radius=footprint,
+        spacing=spacing,
+        lattice_shape=(ny, nx),
+        origin=_readonly(origin),
+        types=types,
+        palette_index=_readonly(p_idx),
+        orientation=_readonly(k_idx),
+        start_cell=_readonly(cell),
+        start_xy=_readonly(start_xy),
+        start_state=_readonly(start_state),
+        end_state=_readonly(end_state),
+        durations=_readonly(types.duration[typ]),
+        path_lengths=_readonly(types.path_length[typ]),
+        sweep_step=sweep_step,
+    )
+
+
+def max_trim_speed(palette: Palette) -> float:
+    """v_max: the largest reference speed of the palette's trim policies (m/s); 0 if the
+    palette has no cruise trim."""
+    speeds = [
+        float(np.hypot(*p.primitive.start_velocity))
+        for p in palette.policies
+        if p.primitive.is_trim
+    ]
+    return max(speeds, default=0.0)
+
+
+def _placed_types(types: PolicyTypes) -> BoolArray:
+    """Types instantiated: all but the orientations k > 0 of a rotation-invariant capture
+    regulator (rest reference, round domains), for which one orientation suffices."""
+    invariant = (
+        types.is_capture
+        & np.all(types.start_velocity == 0.0, axis=1)
+        & np.all(types.end_offset == 0.0, axis=1)
+    )
+    out: BoolArray = ~(invariant & (types.orientation > 0))
+    return out
+
+
+def estimate_library_size(
+    palette: Palette,
+    world_map: WorldMap,
+    spacing: float,
+    *,
+    footprint_radius: float = 0.2,
+    sweep_step: float | None = None,
+    speed_clearance: float = DEFAULT_SPEED_CLEARANCE,
+) -> tuple[int, int]:
+    """Bounds on the number of policies one pass at ``spacing`` would keep, without
+    instantiating: O(P log P) in the lattice points P.
+
+    A scale group (a policy and its larger-domain variants at one orientation) keeps at
+    most one policy per lattice point, and exactly one where the clearance of the point
+    is at least the footprint plus the reach of a whole swept D' of one of its sizes
+    (the instantiation's "sure" test). Points below the footprint plus the reach of the
+    first sample cannot hold the group.
+
+    Parameters
+    ----------
+    palette : Palette
+    world_map : WorldMap
+    spacing : float
+        Lattice spacing (m).
+    footprint_radius : float
+        Robot footprint radius (m).
+    sweep_step : float, optional
+        As for :func:`build_library`; default the map resolution.
+    speed_clearance : float
+        As for :func:`build_library` (s).
+
+    Returns
+    -------
+    (int, int)
+        A lower and an upper bound of the library size.
+    """
+    step = float(sweep_step) if sweep_step is not None else float(world_map.resolution)
+    types, tables = _palette_tables(palette, step, float(speed_clearance))
+    _, _, _, points = _lattice(world_map, spacing)
+    c0 = np.sort(world_map.clearance(points))
+    placed = _placed_types(types)
+    groups = types.scale_group[placed]
+    fp = float(footprint_radius)
+
+    def count(reach: FloatArray) -> int:
+        """Σ over scale groups of the most points any of its types passes."""
+        n_ok = c0.size - np.searchsorted(c0, fp + reach[placed], side="left")
+        best = np.zeros(int(types.scale_group.max(initial=-1)) + 1, dtype=np.int64)
+        np.maximum.at(best, groups, n_ok)
+        return int(best.sum())
+
+    return count(tables["type_total_reach"]), count(tables["sample_first_reach"])
+
+
+def _check_memory(
+    palette: Palette,
+    world_map: WorldMap,
+    spacing: float,
+    footprint: float,
+    step: float,
+    speed_clearance: float,
+    limit: float,
+    halving: int,
+) -> None:
+    """Refuse a pass whose library would not fit in ``limit`` bytes (see
+    :func:`build_library`)."""
+    low, high = estimate_library_size(
+        palette,
+        world_map,
+        spacing,
+        footprint_radius=footprint,
+        sweep_step=step,
+        speed_clearance=speed_clearance,
+    )
+    need = low * POLICY_BYTES
+    if need > limit:
+        (x0, y0), (x1, y1) = world_map.bounds
+        raise ConfigError(
+            f"{world_map.source}: one pass at spacing {spacing:g} m (halving {halving}) on "
+            f"this {x1 - x0:g} m × {y1 - y0:g} m map would keep {low:.3g} to {high:.3g} "
+            f"policies, needing at least {need / 2**30:.1f} GiB for the library, its graph "
+            f"and a search ({POLICY_BYTES} bytes per policy), above memory_limit "
+            f"{limit / 2**30:.1f} GiB; plan on a smaller map or region of it, use fewer "
+            "halvings, or raise memory_limit"
+        )
+
+
+def _check_inputs(
+    palette: Palette,
+    world_map: WorldMap,
+    footprint_radius: float,
+    coverage_target: float,
+    max_halvings: int,
+    coverage_samples: int,
+    sweep_step: float | None,
+    memory_limit: float | None,
+    speed_clearance: float,
+) -> None:
+    if not isinstance(palette, Palette):
+        raise ConfigError(f"palette must be a Palette, got {type(palette).__name__}")
+    if not isinstance(world_map, WorldMap):
+        raise ConfigError(
+            f"world_map must be a WorldMap (see gracenav.world.load_map), got "
+            f"{type(world_map).__name__}"
+        )
+    if len(palette) == 0:
+        raise ConfigError("the palette has no policies; build one with `gracenav palette build`")
+    if not (math.isfinite(palette.d) and palette.d > 0):
+        raise ConfigError(f"palette distance parameter d must be positive, got {palette.d!r}")
+    if not (isinstance(footprint_radius, int | float) and math.isfinite(footprint_radius)):
+        raise ConfigError(f"footprint_radius must be a finite number (m), got {footprint_radius!r}")
+    if footprint_radius < 0:
+        raise ConfigError(
+            f"footprint_radius must be >= 0 m, got {footprint_radius:g}; the robot body "
+            "needs about 0.2 m"
+        )
+    if not (isinstance(coverage_target, int | float) and 0.0 <= coverage_target <= 1.0):
+        raise ConfigError(f"coverage_target must be a fraction in [0, 1], got {coverage_target!r}")
+    if isinstance(max_halvings, bool) or not isinstance(max_halvings, int) or max_halvings < 0:
+        raise ConfigError(f"max_halvings must be an integer >= 0, got {max_halvings!r}")
+    if (
+        isinstance(coverage_samples, bool)
+        or not isinstance(coverage_samples, int)
+        or coverage_samples < 1
+    ):
+        raise ConfigError(f"coverage_samples must be an integer >= 1, got {coverage_samples!r}")
+    if sweep_step is not None and not (
+        isinstance(sweep_step, int | float) and math.isfinite(sweep_step) and sweep_step > 0
+    ):
+        raise ConfigError(f"sweep_step must be a positive length (m), got {sweep_step!r}")
+    if not (
+        isinstance(speed_clearance, int | float)
+        and not isinstance(speed_clearance, bool)
+        and 0.0 <= speed_clearance <= MAX_SPEED_CLEARANCE
+    ):
+        raise ConfigError(
+            f"speed_clearance must be a time in [0, {MAX_SPEED_CLEARANCE:g}] s (extra "
+            f"clearance per m/s of reference speed), got {speed_clearance!r}"
+        )
+    if memory_limit is not None and not (
+        isinstance(memory_limit, int | float)
+        and not isinstance(memory_limit, bool)
+        and memory_limit > 0
+    ):
+        raise ConfigError(
+            f"memory_limit must be a positive number of bytes or None, got {memory_limit!r}"
+        )
+    for pol in palette.policies:
+        start = pol.primitive.position[0, :2]
+        if np.any(np.abs(start) > 1e-9):
+            raise ConfigError(
+                f"palette policy {pol.name!r} starts at {tuple(start)} m, not at the origin of "
+                "its frame; rebuild the palette"
+            )
+
+
+def build_library(
+    palette: Palette,
+    world_map: WorldMap,
+    *,
+    footprint_radius: float = 0.2,
+    coverage_target: float = 1.0,
+    max_halvings: int = 3,
+    seed: int = 0,
+    coverage_samples: int = DEFAULT_COVERAGE_SAMPLES,
+    sweep_step: float | None = None,
+    memory_limit: float | None = DEFAULT_MEMORY_LIMIT,
+    speed_clearance: float = DEFAULT_SPEED_CLEARANCE,
+) -> PolicyLibrary:
+    """Instantiate the palette on a map with coverage-driven lattice refinement.
+
+    Parameters
+    ----------
+    palette : Palette
+        The motion policy palette Π(Σ(d)).
+    world_map : WorldMap
+        The map M; its minimum corner anchors the lattice of instantiation points
+        (so a goal on that lattice is an instantiation point).
+    footprint_radius : float
+        Robot footprint radius (m), >= 0. The body is 0.37 m across.
+    coverage_target : float
+        Coverage fraction in [0, 1] at which refinement stops.
+    max_halvings : int
+        Largest number of spacing halvings (the last lattice spacing is at least
+        d / 2^max_halvings).
+    seed : int
+        Seed of the coverage sampling.
+    coverage_samples : int
+        Position states sampled to estimate coverage (the same set at every spacing,
+        so coverage never decreases from one spacing to the next).
+    sweep_step : float, optional
+        Largest arc length (m) between the checked samples of a swept outer domain;
+        default the map resolution.
+    memory_limit : float or None
+        Bytes the library, its graph and a search may take (default 4 GiB). Before
+        each pass, the lower bound of :func:`estimate_library_size` times
+        :data:`POLICY_BYTES` is compared with it and an over-budget pass is refused;
+        None turns the check off.
+    speed_clearance : float
+        Stopping allowance (s): where the reference moves at velocity v, an obstacle
+        straight ahead must be this times |v| farther than the swept D' needs; the disc
+        checked for it also asks half of that beside the path, nothing behind (0 is the
+        paper's instantiation; see the notes).
+
+    Returns
+    -------
+    PolicyLibrary
+        The library at the last spacing tried, with the per-iteration records.
+
+    Raises
+    ------
+    ConfigError
+        For invalid arguments (the message names the argument), and for a pass whose
+        estimated memory exceeds ``memory_limit`` (the message gives the estimate).
+    MapError
+        If no position of the map has clearance >= ``footprint_radius``.
+
+    Notes
+    -----
+    **Obstacle check.** Instantiation at point q with orientation k is valid iff for
+    every t in [0, t_f] the disc of radius f + ρ'(t) around q + R_k σ_xy(t) lies in
+    free space inside the map (f the footprint radius, ρ'(t) the XY radius of D'(t):
+    outer position factor × position extent of D(t)). It is checked with
+    ``world_map.clearance`` (distance to the nearest occupied cell or the map edge,
+    0 outside; as exact as the map's rasterisation, within one cell of the true
+    obstacles) at reference samples c_0 = 0, ..., c_K = σ_xy(t_f), chosen at most
+    ``sweep_step`` of arc apart (plus one control tick of motion). Between samples
+    j and j+1, separated by arc length ℓ_j, every reference point is within ℓ_j / 2
+    of one of them, and ρ'(t) (geometric in t, hence monotone) is at most
+    max(ρ'_j, ρ'_{j+1}). So requiring
+
+        clearance(q + c_j) >= f + max over adjacent intervals i of
+                                  (max(ρ'_i, ρ'_{i+1}) + ℓ_i / 2)
+
+    at every sample is sufficient: the allowance for the spacing of samples is
+    ℓ/2 <= (sweep_step + one tick of motion) / 2. To be fast the check is
+    hierarchical and uses that clearance is a distance (1-Lipschitz): a disc around q
+    (then one around each group of 8 samples) that bounds all the required discs is
+    tested first, and the samples only where it is not clear. Loops run over
+    palette policies × orientations only; all points are handled by numpy.
+
+    **Stopping allowance.** With ``speed_clearance`` κ_v > 0 an obstacle in direction
+    u from the reference point at velocity v must also leave κ_v max(0, v · u) more
+    room: the full κ_v |v| straight ahead, nothing beside or behind. The disc of radius
+    f + ρ'(t) + κ_v |v|/2 centred κ_v v/2 ahead of σ_xy(t) contains that region: with
+    R = f + ρ' and a = κ_v |v|/2, its boundary in direction θ from v lies at
+    a cos θ + √((R + a)² − a² sin² θ), whose square exceeds that of
+    R + 2a max(0, cos θ) by 2aR(1 − |cos θ|) >= 0. So the check above runs on the
+    path led by κ_v v/2 with every reach grown by κ_v |v|/2 (the samples take the
+    fastest tick between them and their neighbours).
+    Verification does not depend on it (D' is unchanged); it keeps policies from
+    heading fast at obstacles, so that a push there leaves room for a catch
+    (:mod:`gracenav.execution.capture`) to stop the robot: a push of 8–16 N s leaves
+    0.8–1.2 m/s, whose shortest verified catch reaches 0.7–1.2 m. Running along a wall
+    costs half the allowance beside it. Rest policies (the goals, and the catches'
+    ends) are unaffected.
+
+    **Coverage** is the fraction of ``coverage_samples`` position states, uniform
+    over free positions with clearance >= f and velocities in [−v_max, v_max]² (v_max
+    the largest trim speed; see :func:`sample_position_states` and
+    :func:`max_trim_speed`), inside at least one start domain S. Points whose
+    clearance is below f + (outer position factor − 1) · ρ_S (ρ_S the XY radius of
+    S) cannot be covered: no valid start domain reaches them. On maps with walls
+    coverage therefore stays below 1 and a target of 1 uses every halving.
+    """
+    _check_inputs(
+        palette,
+        world_map,
+        footprint_radius,
+        coverage_target,
+        max_halvings,
+        coverage_samples,
+        sweep_step,
+        memory_limit,
+        speed_clearance,
+    )
+    footprint = float(footprint_radius)
+    allowance = float(speed_clearance)
+    step = float(sweep_step) if sweep_step is not None else float(world_map.resolution)
+    types, tables = _palette_tables(palette, step, allowance)
+    samples = sample_position_states(
+        world_map,
+        coverage_samples,
+        footprint_radius=footprint,
+        v_max=max_trim_speed(palette),
+        seed=seed,
+    )
+    iterations: list[InstantiationIteration] = []
+    library: PolicyLibrary | None = None
+    coverage = 0.0
+    for h in range(max_halvings + 1):
+        t0 = time.perf_counter()
+        spacing = palette.d / 2**h
+        if memory_limit is not None:
+            _check_memory(
+                palette, world_map, spacing, footprint, step, allowance, float(memory_limit), h
+            )
+        library = _instantiate(palette, types, tables, world_map, spacing, footprint, step)
+        coverage = float(np.mean(library.start_domain_covers(samples)))
+        iterations.append(
+            InstantiationIteration(spacing, len(library), coverage, time.perf_counter() - t0)
+        )
+        if coverage >= coverage_target:
+            break
+    assert library is not None
+    return library._with_results(
+        coverage=coverage, iterations=tuple(iterations), speed_clearance=allowance
+    )

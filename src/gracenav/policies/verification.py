@@ -1,0 +1,203 @@
+"""Verification of motion policies on the 3D model: trajectories from the surface of S
+must stay in D'(t) and end in G; domain sizing by bisection."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import replace
+
+import numpy as np
+
+from gracenav.control import ControllerGains, design_gains
+from gracenav.params import BallbotParams
+from gracenav.policies.domains import sphere_points
+from gracenav.policies.options import PushLeanTable, VerificationOptions
+from gracenav.policies.policy import MotionPolicy, VerificationReport, flat_position_state
+from gracenav.policies.primitive import SampledPrimitive
+from gracenav.policies.shape import DomainShape, domain_shape
+from gracenav.sim import position_state, simulate_batch, state_from_position
+
+__all__ = ["combined_report", "size_policy", "verify_placements", "verify_policy"]
+
+
+def verify_policy(
+    policy: MotionPolicy,
+    options: VerificationOptions | None = None,
+    *,
+    params: BallbotParams | None = None,
+    push_leans: PushLeanTable | None = None,
+    boundary_points: int | None = None,
+) -> VerificationReport:
+    """Verify a policy on the 3D model from points on the surface of its start domain.
+
+    Parameters
+    ----------
+    policy : MotionPolicy
+    options : VerificationOptions, optional
+    params : BallbotParams, optional
+        Plant parameters (default: the controller's nominal ones).
+    push_leans : PushLeanTable, optional
+        Also start every boundary point with the lean and lean rate a push leaves at
+        each of the table's times, at the point's speed and along its velocity (added
+        to the reference's), not only with the reference's.
+    boundary_points : int, optional
+        Default ``options.boundary_points``.
+
+    Returns
+    -------
+    VerificationReport
+    """
+    options = options if options is not None else VerificationOptions()
+    prim = policy.primitive
+    u = sphere_points(boundary_points or options.boundary_points)
+    # Map unit-sphere points onto the surface of S: p = c + L u with L Lᵀ = P⁻¹.
+    ell = np.linalg.cholesky(np.linalg.inv(policy.start_domain.shape_matrix))
+    p0 = prim.position[0, :4] + u @ ell.T
+    x_plan = prim.states[0]
+    lean = x_plan[2:4]
+    rate = x_plan[6:8]
+    r = policy.gains.params.ball_radius
+    x0 = state_from_position(p0, r, lean=lean, lean_rate=rate)
+    if push_leans is not None:
+        speed = np.hypot(p0[:, 2], p0[:, 3])
+        unit = p0[:, 2:4] / np.maximum(speed, 1e-12)[:, None]
+        variants = [x0]
+        flat_length = None
+        if policy.flat_start:
+            from gracenav.primitives.shape_planner import flat_output_lengths
+
+            flat_length = float(np.mean(flat_output_lengths(policy.gains.params)))
+        for k in range(push_leans.times.size):
+            dl, dr = push_leans.lean_at(k, speed, flat_length=flat_length)
+            d_lean, d_rate = unit * dl[:, None], unit * dr[:, None]
+            ball = p0
+            if policy.flat_start:  # the flat output on S's boundary, the ball off it
+                ball = flat_position_state(p0, -d_lean, -d_rate, policy.gains.params)
+            variants.append(
+                state_from_position(ball, r, lean=lean + d_lean, lean_rate=rate + d_rate)
+            )
+        x0 = np.concatenate(variants)
+    res = simulate_batch(
+        x0,
+        prim.reference(),
+        policy.gains,
+        params=params,
+        monitor=policy.outer_monitor(),
+    )
+    final_p = position_state(res.final_states, r)
+    goal_values = policy.goal_domain.value(final_p)
+    saturated = int(np.count_nonzero(res.saturated_ticks))
+    report = VerificationReport(
+        passed=bool(
+            np.all(res.max_domain_value <= 1.0)
+            and np.all(goal_values <= 1.0)
+            and np.all(res.max_lean <= options.lean_limit)
+            and saturated == 0
+        ),
+        runs=int(x0.shape[0]),
+        max_outer_value=float(np.max(res.max_domain_value)),
+        max_goal_value=float(np.max(goal_values)),
+        max_lean=float(np.max(res.max_lean)),
+        max_torque=float(np.max(res.max_torque)),
+        saturated_runs=saturated,
+    )
+    return report
+
+
+def combined_report(*reports: VerificationReport) -> VerificationReport:
+    """The combined report of several verifications of one policy (passes only if all
+    pass; worst values, total runs)."""
+    return VerificationReport(
+        passed=all(r.passed for r in reports),
+        runs=sum(r.runs for r in reports),
+        max_outer_value=max(r.max_outer_value for r in reports),
+        max_goal_value=max(r.max_goal_value for r in reports),
+        max_lean=max(r.max_lean for r in reports),
+        max_torque=max(r.max_torque for r in reports),
+        saturated_runs=sum(r.saturated_runs for r in reports),
+    )
+
+
+def verify_placements(
+    policy: MotionPolicy,
+    options: VerificationOptions | None = None,
+    *,
+    params: BallbotParams | None = None,
+    push_leans: PushLeanTable | None = None,
+    boundary_points: int | None = None,
+) -> VerificationReport:
+    """Verify a policy at every placement instantiation uses (``push_leans`` and
+    ``boundary_points`` as in :func:`verify_policy`).
+
+    Instantiation places policies at 0°, 90°, 180° and 270°; 180° is an exact
+    symmetry of the 3D model, so the 0° and 90° placements cover all four. Returns
+    the combined report (passes only if both pass).
+    """
+    reports = [
+        verify_policy(
+            replace(policy, primitive=policy.primitive.rotated(k)),
+            options,
+            params=params,
+            push_leans=push_leans,
+            boundary_points=boundary_points,
+        )
+        for k in (0, 1)
+    ]
+    return combined_report(*reports)
+
+
+def size_policy(
+    primitive: SampledPrimitive,
+    gains: ControllerGains | None = None,
+    options: VerificationOptions | None = None,
+    *,
+    shape: DomainShape | None = None,
+    progress: Callable[[], None] | None = None,
+) -> MotionPolicy:
+    """Build the policy of ``primitive`` with the largest start domain that verifies.
+
+    Bisection on the scale S/G between 1 and ``options.max_scale``.
+
+    Parameters
+    ----------
+    primitive : SampledPrimitive
+    gains : ControllerGains, optional
+    options : VerificationOptions, optional
+    shape : DomainShape, optional
+        Default: :func:`domain_shape` of ``gains``.
+    progress : callable, optional
+        Called after each verification.
+
+    Returns
+    -------
+    MotionPolicy
+        With ``report.passed`` False if even S = G fails.
+    """
+    options = options if options is not None else VerificationOptions()
+    gains = gains if gains is not None else design_gains()
+    shape = shape if shape is not None else domain_shape(gains, horizon=options.shape_horizon)
+    goal = shape.radii(options.goal_position_extent)
+    factors = (options.outer_position_factor, options.outer_velocity_factor)
+
+    def attempt(scale: float) -> MotionPolicy:
+        pol = MotionPolicy(primitive, gains, goal.scaled(scale), goal, factors, shape.correlation)
+        report = verify_placements(pol, options)
+        if progress is not None:
+            progress()
+        return replace(pol, report=report)
+
+    best = attempt(1.0)
+    if best.report is None or not best.report.passed:
+        return best
+    top = attempt(options.max_scale)
+    if top.report is not None and top.report.passed:
+        return top
+    lo, hi = 1.0, options.max_scale
+    for _ in range(options.bisection_steps):
+        mid = 0.5 * (lo + hi)
+        cand = attempt(mid)
+        if cand.report is not None and cand.report.passed:
+            best, lo = cand, mid
+        else:
+            hi = mid
+    return best
