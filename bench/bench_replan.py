@@ -34,10 +34,11 @@ import numpy as np
 import scipy.sparse as sp
 from bench_library import get_palette
 
+from gracenav.execution.obstacles import ObstacleTracker
 from gracenav.library import build_library
 from gracenav.planning import plan_tree
 from gracenav.planning.graph import build_graph
-from gracenav.planning.repair import KnownObstacle, ObstacleTracker, blocked_policies, timed_repair
+from gracenav.planning.repair import KnownObstacle, blocked_policies, timed_repair
 from gracenav.world import load_map, office_map
 
 

@@ -222,7 +222,8 @@ def test_what_is_kept_per_library_is_shared_and_goes_with_the_library(palette, r
     import weakref
 
     from gracenav.execution.capture import capture_for
-    from gracenav.planning.repair import ObstacleSensing, ObstacleTracker
+    from gracenav.execution.obstacles import ObstacleTracker
+    from gracenav.planning.repair import ObstacleSensing
 
     lib = build_library(palette, room, footprint_radius=0.2, max_halvings=0)
     graph = build_graph(lib)

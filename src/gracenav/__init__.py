@@ -27,7 +27,6 @@ from gracenav.errors import (
     GracenavError,
     MapError,
     PlanningError,
-    VerificationError,
 )
 from gracenav.params import BallbotParams
 
@@ -139,7 +138,6 @@ __all__ = [
     "Push",
     "StateJump",
     "TaskStatus",
-    "VerificationError",
     "WorldMap",
     "__version__",
     "build_graph",

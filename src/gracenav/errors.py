@@ -15,7 +15,6 @@ __all__ = [
     "MapError",
     "OutputError",
     "PlanningError",
-    "VerificationError",
 ]
 
 
@@ -37,10 +36,6 @@ class CacheError(GracenavError, RuntimeError):
 
 class PlanningError(GracenavError, RuntimeError):
     """A navigation goal is impossible (obstacle, outside the map or coverage, unreachable)."""
-
-
-class VerificationError(GracenavError, RuntimeError):
-    """A motion policy failed verification."""
 
 
 class OutputError(GracenavError, OSError):

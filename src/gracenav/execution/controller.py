@@ -32,6 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 from gracenav.errors import ConfigError, PlanningError
 from gracenav.execution.capture import CapturePlan, TerminalPolicy, capture_for
 from gracenav.execution.episode import Episode, ExecutionLog, drive
+from gracenav.execution.obstacles import ObstacleTracker
 from gracenav.execution.supervisor import BALANCING_MARGIN, Supervisor, TrackingLaw
 from gracenav.execution.types import (
     CAPTURE,
@@ -43,7 +44,7 @@ from gracenav.library import PolicyLibrary, quarter_turn
 from gracenav.params import BallbotParams
 from gracenav.planning import CostCriterion, LazyPolicyTree, PolicyTree, plan_tree
 from gracenav.planning.graph import PreparesGraph
-from gracenav.planning.repair import HOLD_MARGIN, ObstacleTracker
+from gracenav.planning.repair import HOLD_MARGIN
 from gracenav.policies import PrimitiveKind, flat_position_state
 from gracenav.sim import Disturbance, position_state
 from gracenav.sim.plant import CONTROL_RATE, Plant, make_plant

@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 from gracenav.control import ControllerGains
 from gracenav.execution.capture import CapturePlan, PlacedPolicy
 from gracenav.execution.episode import ExecutionLog
+from gracenav.execution.obstacles import ObstacleTracker
 from gracenav.execution.types import (
     CAPTURE,
     TERMINAL,
@@ -33,7 +34,7 @@ from gracenav.execution.types import (
     SwitchEvent,
     TaskStatus,
 )
-from gracenav.planning.repair import HOLD_MARGIN, ObstacleTracker
+from gracenav.planning.repair import HOLD_MARGIN
 from gracenav.policies import PrimitiveKind, instantiated_reference
 from gracenav.sim import position_state, state_from_position
 
