@@ -194,7 +194,7 @@ class DecoupledController:
         goal_tolerance: float = 0.05,
         options: DecoupledOptions | None = None,
     ) -> None:
-        from gracenav.execution.supervisor import TrackingLaw
+        from gracenav.control import TrackingLaw
         from gracenav.sim import CONTROL_RATE
 
         self.world_map = world_map

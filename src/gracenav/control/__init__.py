@@ -1,6 +1,6 @@
-"""Balancing and tracking controllers of the paper's Fig. 2: gains, the control rate, the
-per-tick law.
-"""
+"""Balancing and tracking controllers of the paper's Fig. 2: their gains
+(:mod:`~gracenav.control.gains`), the control rate, and the law evaluated every tick
+(:class:`TrackingLaw`)."""
 
 from gracenav.control.gains import (
     CONTROL_RATE,
@@ -10,11 +10,13 @@ from gracenav.control.gains import (
     lqr,
     planar_to_position_coordinates,
 )
+from gracenav.control.law import TrackingLaw
 
 __all__ = [
     "CONTROL_RATE",
     "ControllerGains",
     "LQRWeights",
+    "TrackingLaw",
     "design_gains",
     "lqr",
     "planar_to_position_coordinates",

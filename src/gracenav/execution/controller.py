@@ -29,11 +29,12 @@ from concurrent.futures import Executor, ThreadPoolExecutor
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from gracenav.control import TrackingLaw
 from gracenav.errors import ConfigError, PlanningError
 from gracenav.execution.capture import CapturePlan, TerminalPolicy, capture_for
 from gracenav.execution.episode import Episode, ExecutionLog, drive
 from gracenav.execution.obstacles import ObstacleTracker
-from gracenav.execution.supervisor import BALANCING_MARGIN, Supervisor, TrackingLaw
+from gracenav.execution.supervisor import BALANCING_MARGIN, Supervisor
 from gracenav.execution.types import (
     CAPTURE,
     Command,

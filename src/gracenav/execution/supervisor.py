@@ -12,18 +12,18 @@ hold while moving obstacles block the way, balancing mode, or the end of the tas
 from __future__ import annotations
 
 import math
-import time as _time
 from collections.abc import Callable
-from concurrent.futures import Executor, Future
+from concurrent.futures import Executor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
-from gracenav.control import ControllerGains
+from gracenav.control.law import TrackingLaw
 from gracenav.execution.capture import CapturePlan, PlacedPolicy
 from gracenav.execution.episode import ExecutionLog
+from gracenav.execution.jobs import Job
 from gracenav.execution.obstacles import ObstacleTracker
 from gracenav.execution.types import (
     CAPTURE,
@@ -47,7 +47,7 @@ if TYPE_CHECKING:
     from gracenav.params import BallbotParams
     from gracenav.planning import LazyPolicyTree, PolicyTree
 
-__all__ = ["Supervisor", "TrackingLaw"]
+__all__ = ["Planner", "Supervisor"]
 
 FloatArray = NDArray[np.float64]
 
@@ -97,83 +97,6 @@ class Planner(Protocol):
     def recovery_point(
         self, p: FloatArray, tree: PolicyTree | LazyPolicyTree, dyn: ObstacleTracker | None = None
     ) -> FloatArray: ...
-
-
-class TrackingLaw:
-    """The Fig. 2 cascade of the palette's gains, one tick at a time (compiled)."""
-
-    def __init__(self, gains: ControllerGains) -> None:
-        from gracenav.model.ballbot3d import Ballbot3D
-        from gracenav.model.friction import friction_constants
-
-        p = gains.params
-        self.radius = float(Ballbot3D(p).constants()[0])
-        self.friction = friction_constants(p)
-        self.k = gains.kernel_arrays()
-        self.max_comp = float(gains.max_lean_compensation)
-        self.friction_comp = bool(gains.friction_compensation)
-        self.torque_limit = float(p.torque_limit)
-
-    def __call__(
-        self, x: FloatArray, x_ref: FloatArray, tau_ff: FloatArray, c: FloatArray, shape: FloatArray
-    ) -> tuple[FloatArray, float]:
-        """Saturated torque (2,) and the D'(t) value of ``x`` (0 without a domain)."""
-        from gracenav import _kernels
-
-        out = np.empty(2)
-        val = _kernels.tracking_tick(
-            self.radius,
-            self.friction,
-            self.k,
-            self.max_comp,
-            self.friction_comp,
-            self.torque_limit,
-            x,
-            x_ref,
-            tau_ff,
-            c,
-            shape,
-            out,
-        )
-        return out, float(val)
-
-
-class Job:
-    """A computation longer than a tick (:attr:`ExecutionOptions.planning`).
-
-    ``"threaded"``: submitted to ``executor``, ready when done. ``"modelled"``: run at
-    once, ready ``latency`` (s; None: its wall time) after tick ``tick``.
-    """
-
-    def __init__(
-        self,
-        fn: Callable[[], Any],
-        *,
-        executor: Executor | None,
-        tick: int,
-        dt: float,
-        latency: float | None,
-    ) -> None:
-        self.future: Future[Any] | None = None
-        self.value: Any = None
-        self.due = tick
-        if executor is not None:
-            self.future = executor.submit(fn)
-        else:
-            t0 = _time.perf_counter()
-            self.value = fn()
-            lat = _time.perf_counter() - t0 if latency is None else latency
-            self.due = tick + max(1, math.ceil(lat / dt - 1e-9))
-
-    def ready(self, tick: int) -> bool:
-        """Whether its result may be used at tick ``tick``."""
-        if self.future is not None:
-            return self.future.done()
-        return tick >= self.due
-
-    def result(self) -> Any:
-        """Its result (waits for a thread that has not finished; raises its error)."""
-        return self.future.result() if self.future is not None else self.value
 
 
 @dataclass
