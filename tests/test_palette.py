@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-import gracenav.palette.palette as palette_module
+import gracenav.palette.files as palette_module
 from gracenav import BallbotParams, CacheError
 from gracenav.control import ControllerGains, LQRWeights, design_gains
 from gracenav.palette import (

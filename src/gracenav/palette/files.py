@@ -1,0 +1,244 @@
+"""Palette files: what a palette is keyed by, the shipped file and the user cache, and
+loading one (built once when none matches what is asked)."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from gracenav._util.cache import cache_dir
+from gracenav.control import ControllerGains, design_gains
+from gracenav.errors import CacheError
+from gracenav.palette.build import build_palette
+from gracenav.palette.palette import Palette, palette_key
+from gracenav.params import BallbotParams
+from gracenav.policies import SampledPrimitive, VerificationOptions
+from gracenav.primitives import PrimitiveSetOptions
+
+__all__ = [
+    "GAINS_RTOL",
+    "PALETTE_ENV",
+    "build_palette_for",
+    "cached_palette_path",
+    "load_palette",
+    "shipped_palette_path",
+]
+
+#: Largest relative difference (see ControllerGains.relative_difference) between a
+#: palette's stored gains and the gains requested of it that still counts as the
+#: same design. Rebuilding the gains on another numpy/scipy build changes them by
+#: about 1e-14; any real change of a design input changes them by far more.
+GAINS_RTOL = 1e-8
+
+#: Environment variable naming a palette file to use instead of the default.
+PALETTE_ENV = "GRACENAV_PALETTE"
+
+
+def shipped_palette_path() -> Path:
+    """Path of the palette file shipped inside the package."""
+    return Path(str(resources.files("gracenav") / "data" / "palette.npz"))
+
+
+def _requested_differences(
+    pal: Palette,
+    params: BallbotParams,
+    gains: ControllerGains,
+    options: VerificationOptions,
+    d: float,
+) -> list[str]:
+    """What the inputs stored in ``pal`` and the requested ones differ in, in words."""
+
+    def fields(kind: str, have: dict[str, Any], want: dict[str, Any]) -> list[str]:
+        return [
+            f"{kind} {k}: {have.get(k)!r} in the file, {want.get(k)!r} requested"
+            for k in sorted(set(have) | set(want))
+            if have.get(k) != want.get(k)
+        ]
+
+    out = fields("robot parameter", pal.params.to_dict(), params.to_dict())
+    out += fields("controller design", pal.gains.design_inputs(), gains.design_inputs())
+    out += fields(
+        "verification option", dataclasses.asdict(pal.options), dataclasses.asdict(options)
+    )
+    if pal.d != float(d):
+        out.append(f"d: {pal.d!r} m in the file, {float(d)!r} m requested")
+    if pal.primitive_options != PrimitiveSetOptions():
+        out.append("primitive set options other than this version's defaults")
+    if pal.key != palette_key(params, gains, options, d) and not out:
+        out.append("format or algorithm version")
+    return out
+
+
+def _mismatch(
+    pal: Palette,
+    params: BallbotParams,
+    gains: ControllerGains,
+    options: VerificationOptions,
+    d: float,
+) -> str | None:
+    """Why ``pal`` cannot serve the request, or None if it can."""
+    if pal.key != palette_key(params, gains, options, d):
+        return "it was built for " + "; ".join(
+            _requested_differences(pal, params, gains, options, d)
+        )
+    diff = pal.gains.relative_difference(gains)
+    if not diff <= GAINS_RTOL:
+        return (
+            f"its controller gains differ from the requested ones by a relative {diff:.1e} "
+            f"(tolerance {GAINS_RTOL:.0e}): the same design inputs gave other gains"
+        )
+    return None
+
+
+def _read_palette(path: Path) -> Palette:
+    """Read ``path`` and check its key against the inputs stored in it."""
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise CacheError(
+            f"cannot read palette file {path}: {exc.strerror}; build one with "
+            "`gracenav palette build`"
+        ) from None
+    pal = Palette.from_bytes(data, source=str(path))
+    if pal.key != pal.expected_key():
+        raise CacheError(
+            f"{path}: palette key does not match the inputs stored in it (stale or edited "
+            "file); rebuild it with `gracenav palette build`"
+        )
+    return pal
+
+
+def _redesign(gains: ControllerGains) -> ControllerGains:
+    """The gains designed anew from ``gains``' design inputs (hand-given gains as given)."""
+    if gains.weights is None:
+        return gains
+    return design_gains(
+        gains.params,
+        gains.weights,
+        max_lean_compensation=gains.max_lean_compensation,
+        friction_compensation=gains.friction_compensation,
+    )
+
+
+def cached_palette_path(key: str) -> Path:
+    """Where the palette with ``key`` (see :func:`palette_key`) is cached."""
+    return cache_dir() / f"palette-{key[:24]}.npz"
+
+
+def load_palette(
+    path: str | Path | None = None,
+    *,
+    params: BallbotParams | None = None,
+    gains: ControllerGains | None = None,
+    options: VerificationOptions | None = None,
+    d: float | None = None,
+    build: bool = True,
+    processes: int | None = None,
+    progress: bool = True,
+) -> Palette:
+    """The palette for the requested robot, controller, verification options and d.
+
+    Without ``path`` (and without ``$GRACENAV_PALETTE``), the palette shipped with
+    gracenav is returned when it was built from the requested inputs; otherwise a
+    matching palette from the user cache (:func:`cached_palette_path`), and when
+    there is none (or it is corrupt) one is built once, with a progress bar, and
+    cached atomically. A palette "matches" when its key (a hash of the inputs,
+    :func:`palette_key`) is the requested one and its stored gains equal the
+    requested gains within a relative :data:`GAINS_RTOL`.
+
+    Parameters
+    ----------
+    path : str or Path, optional
+        Force this palette file (default ``$GRACENAV_PALETTE`` if set). A forced file
+        that does not match the request is an error, never rebuilt.
+    params, gains, options, d : optional
+        What the palette must have been built for. Defaults: for a forced file, what
+        it was built for (its gains designed anew from its design inputs and
+        compared); otherwise the CMU ballbot, :func:`gracenav.control.design_gains`
+        on ``params``, default :class:`VerificationOptions` and d = 0.5 m.
+    build : bool
+        Build a missing palette (False: raise CacheError instead).
+    processes : int, optional
+        Worker processes of a build (default: the number of CPUs, at most 4).
+    progress : bool
+        Show the build's progress bar on a terminal.
+
+    Raises
+    ------
+    CacheError
+        A forced file is missing, corrupt, stale or does not match; or no matching
+        palette exists and ``build`` is False.
+    """
+    forced = path if path is not None else (os.environ.get(PALETTE_ENV) or None)
+    if forced is not None:
+        pal = _read_palette(Path(forced))
+        # What is not asked for is what the file was built for; its gains are then
+        # designed anew from the file's design inputs and compared, as for any request.
+        params = params if params is not None else pal.params
+        if gains is None:
+            gains = _redesign(pal.gains) if params == pal.params else design_gains(params)
+        options = options if options is not None else pal.options
+        why = _mismatch(pal, params, gains, options, d if d is not None else pal.d)
+        if why is not None:
+            raise CacheError(
+                f"{forced}: this palette cannot be used: {why}. Leave out --palette / "
+                f"${PALETTE_ENV} to use (or build once) a matching palette, or rebuild this "
+                "file with `gracenav palette build --out FILE`"
+            )
+        return pal
+    params = params if params is not None else BallbotParams()
+    gains = gains if gains is not None else design_gains(params)
+    options = options if options is not None else VerificationOptions()
+    d = float(d) if d is not None else 0.5
+    key = palette_key(params, gains, options, d)
+    for candidate in (shipped_palette_path(), cached_palette_path(key)):
+        if not candidate.is_file():
+            continue
+        try:
+            pal = _read_palette(candidate)
+        except CacheError:
+            continue  # a corrupt or stale cache file is rebuilt below
+        if _mismatch(pal, params, gains, options, d) is None:
+            return pal
+    if not build:
+        raise CacheError(
+            "no palette matches the requested robot parameters, controller, verification "
+            f"options and d = {d} m; build one with `gracenav palette build`"
+        )
+    pal = build_palette_for(
+        params=params, gains=gains, options=options, d=d, processes=processes, progress=progress
+    )
+    try:
+        pal.save(cached_palette_path(key))
+    except OSError:
+        pass  # an unwritable cache only costs the rebuild next time
+    return pal
+
+
+def build_palette_for(
+    *,
+    params: BallbotParams,
+    gains: ControllerGains,
+    options: VerificationOptions,
+    d: float,
+    processes: int | None = None,
+    progress: bool = True,
+) -> Palette:
+    """Plan the primitive set Σ(d) and build its palette (see :func:`build_palette`)."""
+    from gracenav.primitives import primitive_set
+
+    prims = [SampledPrimitive.from_primitive(p) for p in primitive_set(d=d, params=params)]
+    if processes is None:
+        processes = max(1, min(4, os.cpu_count() or 1))
+    return build_palette(
+        prims,
+        d=d,
+        params=params,
+        gains=gains,
+        options=options,
+        processes=processes,
+        progress=progress,
+    )
