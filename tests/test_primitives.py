@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import gracenav.primitives.design as prim_design
 import gracenav.primitives.sets as prim_mod
 from gracenav.errors import CacheError
 from gracenav.model.ballbot3d import Ballbot3D
@@ -261,7 +262,7 @@ def test_trim_samples(pset: PrimitiveSet) -> None:
 @pytest.fixture
 def small_catalogue(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Path:
     monkeypatch.setattr(
-        prim_mod,
+        prim_design,
         "_CATALOGUE",
         (("rest", "rest", (1, 0)), ("cruise_x", "cruise_y", (1, 1))),
     )

@@ -2,8 +2,7 @@
 feasible, braking maneuvers, the primitive set Σ(d).
 """
 
-from gracenav.primitives.sets import (
-    CODE_VERSION,
+from gracenav.primitives.motion import (
     Maneuver,
     MotionPrimitive,
     PrimitiveReport,
@@ -11,9 +10,12 @@ from gracenav.primitives.sets import (
     PrimitiveSet,
     PrimitiveSetOptions,
     TrimPrimitive,
+    rotation_matrix,
+)
+from gracenav.primitives.sets import (
+    CODE_VERSION,
     cache_dir,
     primitive_set,
-    rotation_matrix,
 )
 
 __all__ = [

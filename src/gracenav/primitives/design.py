@@ -1,0 +1,211 @@
+"""Designing the primitive set Σ(d): the trims at lattice velocities, and the maneuvers
+between them planned feasible by the shape trajectory planner (screened by a
+linearised estimate first)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+
+import numpy as np
+
+from gracenav.params import BallbotParams
+from gracenav.primitives.motion import (
+    _CATALOGUE,
+    FloatArray,
+    Maneuver,
+    MotionPrimitive,
+    PrimitiveReport,
+    PrimitiveSet,
+    PrimitiveSetOptions,
+    TrimPrimitive,
+    _frozen,
+    rotation_matrix,
+)
+from gracenav.primitives.shape_planner import (
+    NonicReference,
+    ShapePlannerResult,
+    flat_output_gain,
+    flat_output_lengths,
+    plan_shape_trajectory,
+)
+
+__all__ = []
+
+
+def _trim_velocities(d: float, options: PrimitiveSetOptions) -> dict[str, FloatArray]:
+    tick = options.planner.step
+    t_axis = max(1, round(d / options.cruise_speed / tick)) * tick
+    t_diag = max(1, round(d * math.sqrt(2.0) / options.cruise_speed / tick)) * tick
+    vx = d / t_axis
+    vd = d / t_diag
+    return {
+        "rest": np.zeros(2),
+        "cruise_x": np.array([vx, 0.0]),
+        "cruise_y": np.array([0.0, vx]),
+        "cruise_xy": np.array([vd, vd]),
+        "cruise_nx": np.array([-vx, 0.0]),
+        "cruise_ny": np.array([0.0, -vx]),
+    }
+
+
+def _trims(d: float, params: BallbotParams, options: PrimitiveSetOptions) -> list[TrimPrimitive]:
+    vel = _trim_velocities(d, options)
+    out = [
+        TrimPrimitive(
+            "rest",
+            options.rest_duration,
+            _frozen([0.0, 0.0]),
+            _frozen(vel["rest"]),
+            _frozen(vel["rest"]),
+            params,
+        ),
+        TrimPrimitive(
+            "capture",
+            options.capture_duration,
+            _frozen([0.0, 0.0]),
+            _frozen(vel["rest"]),
+            _frozen(vel["rest"]),
+            params,
+        ),
+    ]
+    for name, disp in (("cruise_x", (d, 0.0)), ("cruise_y", (0.0, d)), ("cruise_xy", (d, d))):
+        v = vel[name]
+        duration = float(np.max(np.abs(disp)) / np.max(np.abs(v)))
+        out.append(TrimPrimitive(name, duration, _frozen(disp), _frozen(v), _frozen(v), params))
+    return out
+
+
+_SCREEN_MARGIN = 0.03
+
+
+def _maneuver_name(start: str, end: str, cells: tuple[int, int]) -> str:
+    return f"{start}_to_{end}_{cells[0]}_{cells[1]}"
+
+
+def _linear_estimate(ref: NonicReference, params: BallbotParams) -> tuple[float, float]:
+    """Peak tilt (rad) and |τ| (N m) of the linearised model's flat-output solution."""
+    kappa = flat_output_gain(params)
+    lengths = flat_output_lengths(params)
+    r = params.ball_radius
+    alpha, beta = params.alpha(), params.beta()
+    t = np.linspace(0.0, ref.duration, max(2, int(ref.duration * 128) + 1))
+    yd, ydd, y3, y4 = (ref.value(t, o) for o in (1, 2, 3, 4))
+    ph, phd, phdd = ydd / kappa, y3 / kappa, y4 / kappa
+    thd = (yd - lengths * phd) / r - phd
+    thdd = (ydd - lengths * phdd) / r - phdd
+    # The friction law of gracenav.model.friction written out: its two terms enter this
+    # sum one by one, and friction_torque's own sum would round differently.
+    fric = params.coulomb_friction * np.tanh(thd / params.friction_smoothing)
+    tau = alpha * thdd + (alpha + beta) * phdd + fric + params.viscous_friction * thd
+    return float(np.max(np.hypot(ph[:, 0], ph[:, 1]))), float(np.max(np.abs(tau)))
+
+
+def _reference_ok(
+    ref: NonicReference, v0: FloatArray, v1: FloatArray, options: PrimitiveSetOptions
+) -> bool:
+    """Speed cap, and no more than a slight backward motion (``options.max_backward_speed``)
+    along an axis whose two end velocities are >= 0."""
+    t = np.linspace(0.0, ref.duration, max(2, int(ref.duration * 128) + 1))
+    vel = ref.value(t, 1)
+    if np.max(np.hypot(vel[:, 0], vel[:, 1])) > options.max_speed * (1 + 1e-9):
+        return False
+    for i in range(2):
+        if v0[i] >= 0 and v1[i] >= 0 and np.min(vel[:, i]) < -options.max_backward_speed:
+            return False
+    return True
+
+
+def _plan_pair(
+    ref: NonicReference,
+    v0: FloatArray,
+    disp: FloatArray,
+    v1: FloatArray,
+    params: BallbotParams,
+    options: PrimitiveSetOptions,
+) -> tuple[ShapePlannerResult, ShapePlannerResult] | None:
+    """Plan a maneuver in its frame and rotated by 90°; None if either is infeasible."""
+
+    def feasible(res: ShapePlannerResult) -> bool:
+        return (
+            res.converged
+            and res.peak_lean <= options.max_lean
+            and res.peak_torque <= params.torque_limit
+        )
+
+    res0 = plan_shape_trajectory(ref, params, model="3d", options=options.planner)
+    if not feasible(res0):
+        return None
+    rot = rotation_matrix(1)
+    ref1 = NonicReference.between(ref.duration, np.zeros(2), rot @ v0, rot @ disp, rot @ v1)
+    res1 = plan_shape_trajectory(ref1, params, model="3d", options=options.planner)
+    if not feasible(res1):
+        return None
+    return res0, res1
+
+
+def _plan_maneuver(
+    start: str,
+    end: str,
+    cells: tuple[int, int],
+    d: float,
+    params: BallbotParams,
+    options: PrimitiveSetOptions,
+) -> Maneuver | None:
+    """Shortest feasible duration on the grid; None if none within ``max_duration``."""
+    vel = _trim_velocities(d, options)
+    v0, v1 = vel[start], vel[end]
+    disp = np.array(cells, dtype=float) * d
+    zero = np.zeros(2)
+    step = options.duration_step
+    limit_lean, limit_tau = options.max_lean, params.torque_limit
+    grid = [m * step for m in range(1, math.floor(options.max_duration / step + 1e-9) + 1)]
+
+    def ref_at(duration: float) -> NonicReference:
+        return NonicReference.between(duration, zero, v0, disp, v1)
+
+    def candidates() -> Iterator[float]:
+        # Screen the grid with the linearised model's flat-output solution (cheap); plan
+        # the 3D model from the shortest duration whose estimate is within a small margin
+        # of the limits (the 3D model's peaks differ from the estimate by < 1 %).
+        for duration in grid:
+            ref = ref_at(duration)
+            if not _reference_ok(ref, v0, v1, options):
+                continue
+            lean, tau = _linear_estimate(ref, params)
+            if max(lean / limit_lean, tau / limit_tau) <= 1.0 + _SCREEN_MARGIN:
+                yield duration
+
+    chosen: tuple[float, tuple[ShapePlannerResult, ShapePlannerResult]] | None = None
+    for duration in candidates():
+        pair = _plan_pair(ref_at(duration), v0, disp, v1, params, options)
+        if pair is not None:
+            chosen = (duration, pair)
+            break
+    if chosen is None:
+        return None
+    duration, (res0, res1) = chosen
+    return Maneuver(
+        name=_maneuver_name(start, end, cells),
+        duration=duration,
+        displacement=_frozen(disp),
+        start_velocity=_frozen(v0),
+        end_velocity=_frozen(v1),
+        params=params,
+        start_trim=start,
+        end_trim=end,
+        plans=(res0.trajectory, res1.trajectory),
+        reports=(PrimitiveReport.from_result(res0), PrimitiveReport.from_result(res1)),
+    )
+
+
+def _build(d: float, params: BallbotParams, options: PrimitiveSetOptions) -> PrimitiveSet:
+    prims: list[MotionPrimitive] = list(_trims(d, params, options))
+    omitted: list[str] = []
+    for start, end, cells in _CATALOGUE:
+        m = _plan_maneuver(start, end, cells, d, params, options)
+        if m is None:
+            omitted.append(_maneuver_name(start, end, cells))
+        else:
+            prims.append(m)
+    return PrimitiveSet(d, params, options, tuple(prims), tuple(omitted))
