@@ -525,8 +525,6 @@ class HybridController:
             capture_plan=plan,
             loops=loops,
         )
-        self._options = options
-        self._moving = tuple(moving_obstacles)
 
     def step(self, t: float, x: ArrayLike, *, held: bool = False) -> Command:
         """The command for one control tick.

@@ -389,11 +389,6 @@ def repair_tree(
     )
 
 
-def blocked_tree(tree: PolicyTree, graph: Any, blocked: BoolArray) -> PolicyTree:
-    """The tree without the ``blocked`` policies, repaired from the unblocked ``tree``."""
-    return repair_tree(tree, graph, np.zeros_like(blocked), blocked)[0]
-
-
 @njit(cache=True, nogil=True)
 def _better(dj: float, j: int, dk: float, k: int) -> bool:
     """Tie rule of :mod:`gracenav.planning`: smaller cost-to-go, then smaller index."""

@@ -50,14 +50,6 @@ def rotation_matrix(k: int) -> FloatArray:
     return np.array([[c, -s], [s, c]])
 
 
-def _rotate_pairs(a: FloatArray, k: int) -> FloatArray:
-    """Rotate every consecutive (x, y) pair of the last axis by k·90°."""
-    rot = rotation_matrix(k)
-    shape = a.shape
-    pairs = a.reshape(*shape[:-1], shape[-1] // 2, 2)
-    return np.asarray(pairs @ rot.T, dtype=float).reshape(shape)
-
-
 def _frozen(a: ArrayLike) -> FloatArray:
     out = np.array(a, dtype=float)
     out.setflags(write=False)
