@@ -119,7 +119,9 @@ FILES = [
         id="duplicate-nested-key",
     ),
     pytest.param("name: x\ntask: [1, 2\n", "not valid YAML", id="syntax"),
-    pytest.param("[" * 5000 + "]" * 5000, "not valid YAML", id="deep-nesting"),
+    pytest.param(
+        "[" * 5000 + "]" * 5000, "not valid YAML", id="deep-nesting", marks=pytest.mark.slow
+    ),
     pytest.param("!!python/object:os.system {}\n", "not valid YAML", id="python-tag"),
     pytest.param("a: &x [1]\nb: *y\n", "not valid YAML", id="unknown-alias"),
     pytest.param("x" * (1 << 20) + "\n", "larger than", id="huge-file"),

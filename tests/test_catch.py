@@ -426,6 +426,7 @@ def test_a_pushed_robot_is_caught_at_its_state_with_the_papers_controller(palett
     assert EventReason.CAPTURE not in [e.reason for e in ep_off.events]
 
 
+@pytest.mark.slow
 def test_pushes_with_the_papers_controller_recover_into_verified_domains(box_room) -> None:
     """A seeded Monte Carlo of 24 single pushes of 0-16 N s (the benchmark's model,
     bench/bench_pushes.py, on the same room, default stopping allowance): with catches,

@@ -84,6 +84,7 @@ def _drive_by_hand(hc: HybridController, plant, goal, kicks=None, limit=200_000)
     raise AssertionError("the task never ended")
 
 
+@pytest.mark.slow
 def test_a_plant_written_here_reaches_the_goal(fig5) -> None:  # type: ignore[no-untyped-def]
     lib, graph = fig5
     hc = HybridController(lib, graph)
@@ -128,6 +129,7 @@ def test_driving_by_hand_equals_run(fig5) -> None:  # type: ignore[no-untyped-de
     np.testing.assert_array_equal(ep.policy[:-1], [c.policy for c in cmds[:-1]])
 
 
+@pytest.mark.slow
 def test_mujoco_plant_by_hand(fig5) -> None:  # type: ignore[no-untyped-def]
     pytest.importorskip("mujoco")
     lib, graph = fig5
