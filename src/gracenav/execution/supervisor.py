@@ -187,6 +187,11 @@ class Supervisor:
         self.capture_tries = 0
         self.capture_at = 0
         self.tree_job: Job | None = None
+        #: The running policy's reference and domains: (row, placed policy or None,
+        #: states, inputs, ball reference, D' shapes).
+        self.arrays: (
+            tuple[int, PlacedPolicy | None, FloatArray, FloatArray, FloatArray, FloatArray] | None
+        ) = None
         if self.background and options.capture:
             # Load the compiled prediction once here, not in the tick that first needs it.
             from gracenav.sim import Reference, simulate
@@ -305,21 +310,31 @@ class Supervisor:
         hc, dt = self.hc, self.dt
         current = self.current
         term = self.terminals[self.k_goal]
+        placed: PlacedPolicy | None = None
         if current == CAPTURE or (current == TERMINAL and term is not None):
             placed = self.captured[0] if current == CAPTURE else term
             assert placed is not None
             prim = placed.primitive
-            ref, ref_pos = placed.reference(self.r)
-            _, shapes = placed.outer_monitor()
             is_goal = False
         else:
             inst = hc.library.policy(current)
             prim = inst.policy.primitive
-            ref, ref_pos = instantiated_reference(prim, inst.orientation, inst.start_xy, self.r)
-            # Domain shapes are invariant under rotations of the plane: only the
-            # centres move with the instantiation.
-            _, shapes = inst.policy.outer_monitor()
             is_goal = current == self.sequence[self.k_goal]
+        cached = self.arrays
+        if cached is None or cached[0] != current or cached[1] is not placed:
+            # A policy's reference and domains are built once while it runs (a look at
+            # the moving obstacles splits it into several segments).
+            if placed is not None:
+                ref, ref_pos = placed.reference(self.r)
+                _, shapes = placed.outer_monitor()
+            else:
+                ref, ref_pos = instantiated_reference(prim, inst.orientation, inst.start_xy, self.r)
+                # Domain shapes are invariant under rotations of the plane: only the
+                # centres move with the instantiation.
+                _, shapes = inst.policy.outer_monitor()
+            cached = (current, placed, ref.states, ref.inputs, ref_pos, shapes)
+            self.arrays = cached
+        _, _, ref_states, ref_inputs, ref_pos, shapes = cached
         if is_goal and self.k_goal + 1 < len(self.sequence):
             # Regenerate the tree for the next goal while the last policy to the
             # current goal runs (paper Sec. V-C).
@@ -338,8 +353,8 @@ class Supervisor:
         part = slice(self.offset, self.offset + n_seg + 1)
         self.segment = _Segment(
             policy=current,
-            ref_states=ref.states[part],
-            ref_inputs=ref.inputs[part],
+            ref_states=ref_states[part],
+            ref_inputs=ref_inputs[part],
             ref_pos=ref_pos[part],
             centers=np.ascontiguousarray(ref_pos[part, :4]),
             shapes=np.ascontiguousarray(shapes[part]),
