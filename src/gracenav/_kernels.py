@@ -393,9 +393,10 @@ def plant_kick(c, x, impulse):
 
 
 @njit(cache=True, error_model="numpy")
-def plant_advance(c, fr, x, tau, force, drag, drag_gain, dt, substeps):
+def plant_advance(c, fr, x, torque, limit, force, drag, drag_gain, dt, substeps):
     """Advance the state ``x`` (8,) in place by one control period ``dt`` (s) of
-    ``substeps`` RK4 steps with the torque ``tau`` (2,) held, a world force ``force``
+    ``substeps`` RK4 steps with the torque ``torque`` (2,) saturated at ``limit`` (N m)
+    and held, a world force ``force``
     (3,) (N) on the body centre of mass, and while ``drag[0] > 0`` a horizontal damper
     of ``drag_gain`` (N s/m) pulling the body toward the velocity ``drag[1:3]`` (m/s);
     the same arithmetic as one period of :func:`closed_loop`."""
@@ -409,6 +410,9 @@ def plant_advance(c, fr, x, tau, force, drag, drag_gain, dt, substeps):
     k3 = np.empty(8)
     k4 = np.empty(8)
     xt = np.empty(8)
+    tau = np.empty(2)
+    for i in range(2):
+        tau[i] = min(max(torque[i], -limit), limit)
     f = force.copy()
     for _s in range(substeps):
         if drag[0] > 0.0:

@@ -42,15 +42,16 @@ class TrackingLaw:
         self.max_comp = float(gains.max_lean_compensation)
         self.friction_comp = bool(gains.friction_compensation)
         self.torque_limit = float(p.torque_limit)
+        from gracenav import _kernels
+
+        self._tick = _kernels.tracking_tick
 
     def __call__(
         self, x: FloatArray, x_ref: FloatArray, tau_ff: FloatArray, c: FloatArray, shape: FloatArray
     ) -> tuple[FloatArray, float]:
         """Saturated torque (2,) and the D'(t) value of ``x`` (0 without a domain)."""
-        from gracenav import _kernels
-
         out = np.empty(2)
-        val = _kernels.tracking_tick(
+        val = self._tick(
             self.radius,
             self.friction,
             self.k,

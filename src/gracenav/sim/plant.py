@@ -161,6 +161,10 @@ class Model3DPlant:
         self._force = np.zeros(3)
         self._drag = np.zeros(3)
         self._damping = 0.0
+        from gracenav import _kernels
+
+        self._advance = _kernels.plant_advance
+        self._kick = _kernels.plant_kick
 
     def reset(self, x0: ArrayLike) -> None:
         self._x = _check(x0)
@@ -174,14 +178,12 @@ class Model3DPlant:
         return self._sensor.measure(self._x)
 
     def advance(self, torque: FloatArray, dt: float) -> None:
-        from gracenav import _kernels
-
-        tau = np.clip(np.asarray(torque, dtype=float), -self._limit, self._limit)
-        _kernels.plant_advance(
+        self._advance(
             self._c,
             self._fr,
             self._x,
-            tau,
+            np.asarray(torque, dtype=float),
+            self._limit,
             self._force,
             self._drag,
             self._damping,
@@ -190,12 +192,10 @@ class Model3DPlant:
         )
 
     def push(self, impulse: FloatArray) -> None:
-        from gracenav import _kernels
-
         i = np.zeros(3)
         i[:2] = impulse
         if np.any(i != 0.0):
-            _kernels.plant_kick(self._c, self._x, i)
+            self._kick(self._c, self._x, i)
 
     def jump(self, delta: FloatArray) -> None:
         self._x += np.asarray(delta, dtype=float)
