@@ -4,19 +4,19 @@ the disturbances, and the plants (the Plant protocol a per-tick controller drive
 from gracenav.sim.closed_loop import (
     DEFAULT_FALL_LEAN,
     BatchResult,
+    Reference,
+    SimulationOptions,
+    SimulationResult,
+    StopReason,
+    simulate,
+    simulate_batch,
+)
+from gracenav.sim.disturbances import (
     BodyForce,
     Disturbance,
     Drag,
     Push,
-    Reference,
-    SimulationOptions,
-    SimulationResult,
     StateJump,
-    StopReason,
-    position_state,
-    simulate,
-    simulate_batch,
-    state_from_position,
 )
 from gracenav.sim.plant import (
     CONTROL_RATE,
@@ -26,6 +26,10 @@ from gracenav.sim.plant import (
     Plant,
     PlantKind,
     make_plant,
+)
+from gracenav.sim.state import (
+    position_state,
+    state_from_position,
 )
 
 __all__ = [

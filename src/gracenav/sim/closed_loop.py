@@ -7,8 +7,7 @@ batches of initial conditions run through the same compiled loop; a MuJoCo
 plant runs the same control law through :mod:`gracenav.sim.mujoco`.
 
 States are x = [θ_x, θ_y, φ_x, φ_y, θ̇_x, θ̇_y, φ̇_x, φ̇_y] (see
-``docs/design.md``); position states p = [x, y, ẋ, ẏ] with x = r_w (θ_x + φ_x).
-"""
+``docs/design.md``); position states p = [x, y, ẋ, ẏ] with x = r_w (θ_x + φ_x)."""
 
 from __future__ import annotations
 
@@ -24,28 +23,20 @@ from gracenav.control import CONTROL_RATE, ControllerGains, design_gains
 from gracenav.errors import ConfigError
 from gracenav.model.friction import friction_constants
 from gracenav.params import BallbotParams
+from gracenav.sim.disturbances import Disturbance, FloatArray, _disturbance_arrays
 from gracenav.sim.plant import PLANT_KINDS, PlantKind
+from gracenav.sim.state import position_state, state_from_position
 
 __all__ = [
     "DEFAULT_FALL_LEAN",
     "BatchResult",
-    "BodyForce",
-    "Disturbance",
-    "Drag",
-    "Push",
     "Reference",
     "SimulationOptions",
     "SimulationResult",
-    "StateJump",
     "StopReason",
-    "position_state",
     "simulate",
     "simulate_batch",
-    "state_from_position",
 ]
-
-FloatArray = NDArray[np.float64]
-
 
 DEFAULT_FALL_LEAN = math.radians(20.0)
 """Default fall limit: |lean| (rad) in either plane beyond which a run has fallen (20°).
@@ -55,24 +46,6 @@ limit): the balancing controller recovers from initial leans up to 20.4° in bot
 planes (21.5° in one plane), saturating the torque and running ≈2.6 m away, and
 diverges from larger ones; the palette's policies lean less than 6°. A lean past 20°
 is therefore taken as a fall."""
-
-
-def position_state(states: ArrayLike, radius: float) -> FloatArray:
-    """Position states [x, y, ẋ, ẏ] (m, m/s) of model states, shape (..., 4)."""
-    s = np.asarray(states, dtype=float)
-    return radius * np.concatenate([s[..., 0:2] + s[..., 2:4], s[..., 4:6] + s[..., 6:8]], axis=-1)
-
-
-def state_from_position(
-    p: ArrayLike, radius: float, lean: ArrayLike = (0.0, 0.0), lean_rate: ArrayLike = (0.0, 0.0)
-) -> FloatArray:
-    """Model state (..., 8) with position state ``p`` (..., 4), lean (rad) and lean rate (rad/s)."""
-    p = np.asarray(p, dtype=float)
-    lean = np.broadcast_to(np.asarray(lean, dtype=float), (*p.shape[:-1], 2))
-    rate = np.broadcast_to(np.asarray(lean_rate, dtype=float), (*p.shape[:-1], 2))
-    return np.concatenate(
-        [p[..., 0:2] / radius - lean, lean, p[..., 2:4] / radius - rate, rate], axis=-1
-    )
 
 
 @dataclass(frozen=True)
@@ -135,49 +108,6 @@ class Reference:
             raise ConfigError(f"duration must be at least one control period, got {duration!r} s")
         x = state_from_position(np.r_[xy, 0.0, 0.0], params.ball_radius)
         return cls(np.tile(x, (n + 1, 1)), np.zeros((n + 1, 2)), dt)
-
-
-@dataclass(frozen=True)
-class Push:
-    """An impulse (N s) on the body centre of mass at ``time`` (s); ``impulse`` is (ix, iy)."""
-
-    time: float
-    impulse: tuple[float, float]
-
-
-@dataclass(frozen=True)
-class BodyForce:
-    """A constant world force (N) (fx, fy) on the body COM over [start_time, end_time)."""
-
-    start_time: float
-    end_time: float
-    force: tuple[float, float]
-
-
-@dataclass(frozen=True)
-class StateJump:
-    """A forced jump ``delta`` (8,) of the model state at ``time`` (s)."""
-
-    time: float
-    delta: tuple[float, ...]
-
-
-@dataclass(frozen=True)
-class Drag:
-    """The robot held at its body and moved along ``velocity`` (m/s) over [start_time, end_time).
-
-    Modelled as a strong horizontal damper on the body centre of mass toward
-    ``velocity``: F = damping · (v − ṗ_COM) (damping in N s/m), which makes
-    the body follow the hand's velocity whatever the controller does.
-    """
-
-    start_time: float
-    end_time: float
-    velocity: tuple[float, float]
-    damping: float = 1000.0
-
-
-Disturbance = Push | BodyForce | StateJump | Drag
 
 
 @dataclass(frozen=True)
@@ -300,57 +230,6 @@ class BatchResult:
     exit_tick: NDArray[np.int64]
     states: FloatArray | None = field(default=None)
     fall_tick: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-
-
-def _tick(t: float, dt: float, num_ticks: int, what: str) -> int:
-    n = round(t / dt)
-    if not 0 <= n <= num_ticks:
-        raise ConfigError(
-            f"{what} time {t!r} s is outside the simulated interval [0, {num_ticks * dt}] s"
-        )
-    return int(n)
-
-
-def _disturbance_arrays(
-    disturbances: Sequence[Disturbance], dt: float, nt: int
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Per-tick arrays for the compiled loop (zero-size when a kind is unused)."""
-    force = np.zeros((0, 3))
-    impulse = np.zeros((0, 3))
-    jump = np.zeros((0, 8))
-    tether = np.zeros((0, 3))
-    gains = np.zeros(1)
-    for d in disturbances:
-        if isinstance(d, Push):
-            if impulse.shape[0] == 0:
-                impulse = np.zeros((nt + 1, 3))
-            impulse[_tick(d.time, dt, nt, "push"), :2] += np.asarray(d.impulse, dtype=float)
-        elif isinstance(d, StateJump):
-            delta = np.asarray(d.delta, dtype=float)
-            if delta.shape != (8,):
-                raise ConfigError(f"StateJump.delta must have 8 entries, got {delta.shape}")
-            if jump.shape[0] == 0:
-                jump = np.zeros((nt + 1, 8))
-            jump[_tick(d.time, dt, nt, "state jump")] += delta
-        elif isinstance(d, BodyForce):
-            if force.shape[0] == 0:
-                force = np.zeros((max(nt, 1), 3))
-            a = _tick(d.start_time, dt, nt, "force start")
-            b = _tick(d.end_time, dt, nt, "force end")
-            force[a:b, :2] += np.asarray(d.force, dtype=float)
-        elif isinstance(d, Drag):
-            if tether.shape[0] == 0:
-                tether = np.zeros((max(nt, 1), 3))
-            elif gains[0] != d.damping:
-                raise ConfigError("all drags of one simulation must share the same damping")
-            gains = np.array([d.damping], dtype=float)
-            a = _tick(d.start_time, dt, nt, "drag start")
-            b = _tick(d.end_time, dt, nt, "drag end")
-            tether[a:b, 0] = 1.0
-            tether[a:b, 1:3] = np.asarray(d.velocity, dtype=float)
-        else:  # pragma: no cover - typing guards this
-            raise ConfigError(f"unknown disturbance {d!r}")
-    return force, impulse, jump, tether, gains
 
 
 def _model_constants(params: BallbotParams) -> FloatArray:
