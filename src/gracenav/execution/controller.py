@@ -64,7 +64,6 @@ _BALANCING_SEARCH = 64
 _LAZY_RECOVERY_BUDGET = 200_000
 
 
-
 class HybridController:
     """Executes navigation tasks with a policy library, its graph and single-goal trees.
 
