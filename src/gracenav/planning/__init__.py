@@ -2,8 +2,14 @@
 and lazy), their compiled searches, and tree repair for moving obstacles.
 """
 
-from gracenav.planning.trees import (
+from gracenav.planning.graph import (
+    STORED_EDGES,
     CostCriterion,
+    PreparesGraph,
+    build_graph,
+    gracefully_prepares,
+)
+from gracenav.planning.trees import (
     LazyPolicyTree,
     PolicyPath,
     PolicyTree,
@@ -12,10 +18,14 @@ from gracenav.planning.trees import (
 )
 
 __all__ = [
+    "STORED_EDGES",
     "CostCriterion",
     "LazyPolicyTree",
     "PolicyPath",
     "PolicyTree",
+    "PreparesGraph",
+    "build_graph",
+    "gracefully_prepares",
     "plan_path",
     "plan_tree",
 ]
