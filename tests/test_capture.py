@@ -21,7 +21,7 @@ from gracenav.policies import (
     push_lean_table,
     regulator_label,
 )
-from gracenav.primitives.braking import braking_policies, braking_primitive
+from gracenav.policies.braking import braking_policies, braking_primitive
 from gracenav.sim import (
     Push,
     Reference,

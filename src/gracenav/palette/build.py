@@ -66,9 +66,9 @@ def _regulators(
 def _braking_one(
     args: tuple[float, tuple[int, int], float, ControllerGains, VerificationOptions, DomainShape],
 ) -> tuple[MotionPolicy, ...]:
-    """One braking maneuver (see :mod:`gracenav.primitives.braking`), planned and verified at every
+    """One braking maneuver (see :mod:`gracenav.policies.braking`), planned and verified at every
     size; empty if no stopping distance is feasible."""
-    from gracenav.primitives.braking import braking_policies, braking_primitive
+    from gracenav.policies.braking import braking_policies, braking_primitive
 
     speed, direction, step, gains, options, shape = args
     assert options.braking is not None

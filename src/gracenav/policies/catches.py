@@ -76,7 +76,7 @@ from gracenav.policies import (
 
 if TYPE_CHECKING:
     from gracenav.params import BallbotParams
-    from gracenav.primitives.shape_planner import PositionReference
+    from gracenav.primitives.references import PositionReference
 
 __all__ = [
     "CATCH_NAME",
@@ -179,7 +179,7 @@ def _plan_to_rest(
     default ``options.min_duration``) whose reference ``reference_of(T)`` (from (0,
     ``velocity``) to rest) the shape planner makes feasible within ``options.max_lean``
     and ``torque_limit``, sampled with the rest tail."""
-    from gracenav.primitives.braking import sampled_with_rest_tail
+    from gracenav.policies.braking import sampled_with_rest_tail
     from gracenav.primitives.shape_planner import plan_shape_trajectory
 
     params = gains.params

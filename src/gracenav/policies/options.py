@@ -130,7 +130,7 @@ class RegulatorOptions:
 
 @dataclass(frozen=True)
 class BrakingOptions:
-    """The palette's braking maneuvers (see :mod:`gracenav.primitives.braking`).
+    """The palette's braking maneuvers (see :mod:`gracenav.policies.braking`).
 
     Parameters
     ----------
@@ -506,7 +506,7 @@ class VerificationOptions:
         The palette's capture regulators (None: none).
     braking : BrakingOptions or None
         The palette's braking maneuvers (None, the default: none; see
-        :mod:`gracenav.primitives.braking` for what they add and what they cost).
+        :mod:`gracenav.policies.braking` for what they add and what they cost).
     catch : CatchOptions or None
         The palette's catches and shifts, placed at the robot's own state
         (:mod:`gracenav.policies.catches`); None: none.

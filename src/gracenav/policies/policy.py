@@ -227,7 +227,7 @@ def flat_position_state(
     """The flat output's position state (y, ẏ) = (x + L φ, ẋ + L φ̇) per axis, for
     ball position states (..., 4) and leans and lean rates (..., 2) measured from the
     plan's (rad, rad/s); L from :func:`gracenav.primitives.shape_planner.flat_output_lengths`."""
-    from gracenav.primitives.shape_planner import flat_output_lengths
+    from gracenav.primitives.references import flat_output_lengths
 
     length = flat_output_lengths(params)
     p = np.array(position_state, dtype=float)
@@ -248,7 +248,7 @@ def capture_point(flat_state: ArrayLike, params: BallbotParams) -> FloatArray:
     as far as its capture point along every direction (ξ lies in the path's convex
     hull): a bound on how near an obstacle a moving robot can stop.
     """
-    from gracenav.primitives.shape_planner import flat_output_gain, flat_output_lengths
+    from gracenav.primitives.references import flat_output_gain, flat_output_lengths
 
     omega = np.sqrt(flat_output_gain(params) / flat_output_lengths(params))
     y = np.asarray(flat_state, dtype=float)

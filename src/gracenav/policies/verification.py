@@ -64,7 +64,7 @@ def verify_policy(
         variants = [x0]
         flat_length = None
         if policy.flat_start:
-            from gracenav.primitives.shape_planner import flat_output_lengths
+            from gracenav.primitives.references import flat_output_lengths
 
             flat_length = float(np.mean(flat_output_lengths(policy.gains.params)))
         for k in range(push_leans.times.size):

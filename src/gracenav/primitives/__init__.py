@@ -1,5 +1,5 @@
 """Motion primitives: nonic references, the shape trajectory planner that makes them
-feasible, braking maneuvers, the primitive set Σ(d).
+feasible, the primitive set Σ(d).
 """
 
 from gracenav.primitives.motion import (

@@ -38,19 +38,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gracenav.control import CONTROL_RATE, ControllerGains
-from gracenav.policies import (
+from gracenav.policies.options import (
     BrakingOptions,
-    DomainShape,
-    MotionPolicy,
-    PrimitiveKind,
     PushLeanTable,
     RegulatorOptions,
-    SampledPrimitive,
     VerificationOptions,
     push_lean_table,
-    variant_label,
-    verify_placements,
 )
+from gracenav.policies.policy import MotionPolicy
+from gracenav.policies.primitive import PrimitiveKind, SampledPrimitive
+from gracenav.policies.regulators import variant_label
+from gracenav.policies.shape import DomainShape
+from gracenav.policies.verification import verify_placements
 
 if TYPE_CHECKING:
     from gracenav.primitives.shape_planner import ShapePlannerResult
