@@ -12,6 +12,7 @@ import gracenav.primitives.design as prim_design
 import gracenav.primitives.sets as prim_mod
 from gracenav.errors import CacheError
 from gracenav.model.ballbot3d import Ballbot3D
+from gracenav.model.rotation import quarter_turn
 from gracenav.params import BallbotParams
 from gracenav.plotting.primitives import plot_primitives
 from gracenav.primitives import (
@@ -20,7 +21,6 @@ from gracenav.primitives import (
     PrimitiveSet,
     TrimPrimitive,
     primitive_set,
-    rotation_matrix,
 )
 
 PARAMS = BallbotParams()
@@ -111,7 +111,7 @@ def test_durations_are_control_periods_and_at_most_4_5_s(pset: PrimitiveSet) -> 
 def test_maneuvers_start_and_end_at_trims(pset: PrimitiveSet) -> None:
     trims = _trim_velocities(pset)
     # ends may be a trim rotated by a multiple of 90° (U-turns end reversed)
-    allowed = [rotation_matrix(k) @ v for v in trims for k in range(4)]
+    allowed = [quarter_turn(k) @ v for v in trims for k in range(4)]
     for m in pset.maneuvers:
         for v in (m.start_velocity, m.end_velocity):
             assert any(np.allclose(v, a, rtol=0, atol=1e-12) for a in allowed), m.name
@@ -186,7 +186,7 @@ def test_rotations(pset: PrimitiveSet) -> None:
     base = m.sample(t)
     for k in range(1, 4):
         r = m.rotated(k)
-        rot = rotation_matrix(k)
+        rot = quarter_turn(k)
         np.testing.assert_allclose(r.displacement, rot @ m.displacement, rtol=0, atol=1e-15)
         np.testing.assert_allclose(r.start_velocity, rot @ m.start_velocity, atol=1e-15)
         np.testing.assert_allclose(r.end_velocity, rot @ m.end_velocity, atol=1e-15)
@@ -201,14 +201,14 @@ def test_rotations(pset: PrimitiveSet) -> None:
         assert _eom_residual(s.states, s.accelerations, s.inputs) < 1e-6
     # mapping the samples by 90° instead of re-planning violates the 3D model
     # (I_xx ≠ I_yy and the Euler order of the lean): the reason for the re-plan
-    q = base.states.reshape(-1, 4, 2) @ rotation_matrix(1).T
-    acc = base.accelerations.reshape(-1, 2, 2) @ rotation_matrix(1).T
-    tau = base.inputs @ rotation_matrix(1).T
+    q = base.states.reshape(-1, 4, 2) @ quarter_turn(1).T
+    acc = base.accelerations.reshape(-1, 2, 2) @ quarter_turn(1).T
+    tau = base.inputs @ quarter_turn(1).T
     assert _eom_residual(q.reshape(-1, 8), acc.reshape(-1, 4), tau) > 1e-2
     # trims rotate exactly
     trim = pset["cruise_xy"].rotated(1)
     assert isinstance(trim, TrimPrimitive)
-    np.testing.assert_allclose(trim.velocity, rotation_matrix(1) @ pset["cruise_xy"].velocity)
+    np.testing.assert_allclose(trim.velocity, quarter_turn(1) @ pset["cruise_xy"].velocity)
 
 
 # -- chaining --------------------------------------------------------------------------

@@ -13,6 +13,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from gracenav.errors import ConfigError
 from gracenav.model.indices import PHI, PHI_X_DOT, PHI_Y_DOT
+from gracenav.model.rotation import QUARTER_TURNS, quarter_turn, rotate_pairs
 from gracenav.palette import Palette
 from gracenav.policies import MotionPolicy, PrimitiveKind
 from gracenav.policies.domains import EllipsoidalDomain
@@ -34,28 +35,11 @@ BoolArray = NDArray[np.bool_]
 #: Orientations of instantiation: k · 90° for k = 0..3.
 ORIENTATIONS = 4
 
-_QUARTER_TURNS = np.array(
-    [
-        [[1.0, 0.0], [0.0, 1.0]],
-        [[0.0, -1.0], [1.0, 0.0]],
-        [[-1.0, 0.0], [0.0, -1.0]],
-        [[0.0, 1.0], [-1.0, 0.0]],
-    ]
-)
-
-_QUARTER_TURNS.setflags(write=False)
+_QUARTER_TURNS = QUARTER_TURNS
 
 _CHUNK = 1 << 19  # clearance queries evaluated at once
 
 _LATTICE_EPS = 1e-9  # relative slack when counting lattice points across the map
-
-
-def quarter_turn(k: int) -> FloatArray:
-    """Exact rotation matrix by k · 90° counter-clockwise, shape (2, 2).
-
-    Entries are exactly 0 and ±1, so rotated states compare exactly.
-    """
-    return np.array(_QUARTER_TURNS[int(k) % ORIENTATIONS])
 
 
 def _readonly(a: NDArray[Any]) -> NDArray[Any]:
@@ -73,9 +57,8 @@ def _ramp(counts: IntArray) -> IntArray:
 
 
 def _rotate(vectors: FloatArray, k: int) -> FloatArray:
-    """Rotate (..., 2) vectors by k · 90°."""
-    out: FloatArray = vectors @ _QUARTER_TURNS[k].T
-    return out
+    """Rotate (..., 2) vectors by k · 90° (:func:`gracenav.model.rotation.rotate_pairs`)."""
+    return rotate_pairs(vectors, k)
 
 
 def _axis_shapes(radii: FloatArray, correlation: FloatArray) -> FloatArray:

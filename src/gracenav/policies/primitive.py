@@ -5,7 +5,6 @@ coarse samples by quintic Hermite interpolation."""
 from __future__ import annotations
 
 import enum
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any, Protocol
@@ -15,10 +14,11 @@ from numpy.typing import ArrayLike, NDArray
 
 from gracenav.control import CONTROL_RATE
 from gracenav.errors import ConfigError
+from gracenav.model.rotation import rotate_pairs, rotate_pairs_by
 from gracenav.params import BallbotParams
 from gracenav.sim import Reference
 
-__all__ = ["PrimitiveKind", "SampledPrimitive", "rotate_pairs_by"]
+__all__ = ["PrimitiveKind", "SampledPrimitive"]
 
 FloatArray = NDArray[np.float64]
 
@@ -317,32 +317,3 @@ class SampledPrimitive:
         b = self.position[np.minimum(i + 1, self.num_ticks), :4]
         out: FloatArray = (1.0 - w) * a + w * b
         return out
-
-
-def rotate_pairs(a: ArrayLike, k: int) -> FloatArray:
-    """Rotate every consecutive (x, y) pair of the last axis of ``a`` by k·90° (exact).
-
-    Model states [θ_x, θ_y, φ_x, φ_y, θ̇_x, θ̇_y, φ̇_x, φ̇_y], torques [τ_x, τ_y] and
-    position states [x, y, ẋ, ẏ, (ẍ, ÿ)] all consist of such pairs.
-    """
-    arr = np.asarray(a, dtype=np.float64)
-    k %= 4
-    c = (1.0, 0.0, -1.0, 0.0)[k]
-    s = (0.0, 1.0, 0.0, -1.0)[k]
-    rot = np.array([[c, -s], [s, c]])
-    pairs = arr.reshape(*arr.shape[:-1], arr.shape[-1] // 2, 2)
-    out: FloatArray = (pairs @ rot.T).reshape(arr.shape)
-    return out
-
-
-def rotate_pairs_by(a: ArrayLike, angle: float) -> FloatArray:
-    """Rotate every consecutive (x, y) pair of the last axis of ``a`` by ``angle`` (rad),
-    counter-clockwise: :func:`rotate_pairs` for any angle. For model states the lean
-    pair is rotated like a vector, which is exact for the position state and first
-    order in the lean (see :meth:`SampledPrimitive.rotated`)."""
-    arr = np.asarray(a, dtype=np.float64)
-    c, s = math.cos(angle), math.sin(angle)
-    rot = np.array([[c, -s], [s, c]])
-    pairs = arr.reshape(*arr.shape[:-1], arr.shape[-1] // 2, 2)
-    out: FloatArray = (pairs @ rot.T).reshape(arr.shape)
-    return out

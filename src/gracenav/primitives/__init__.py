@@ -10,7 +10,6 @@ from gracenav.primitives.motion import (
     PrimitiveSet,
     PrimitiveSetOptions,
     TrimPrimitive,
-    rotation_matrix,
 )
 from gracenav.primitives.sets import (
     CODE_VERSION,
@@ -29,5 +28,4 @@ __all__ = [
     "TrimPrimitive",
     "cache_dir",
     "primitive_set",
-    "rotation_matrix",
 ]

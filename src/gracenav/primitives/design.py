@@ -9,6 +9,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
+from gracenav.model.rotation import quarter_turn
 from gracenav.params import BallbotParams
 from gracenav.primitives.motion import (
     _CATALOGUE,
@@ -20,7 +21,6 @@ from gracenav.primitives.motion import (
     PrimitiveSetOptions,
     TrimPrimitive,
     _frozen,
-    rotation_matrix,
 )
 from gracenav.primitives.shape_planner import (
     NonicReference,
@@ -136,7 +136,7 @@ def _plan_pair(
     res0 = plan_shape_trajectory(ref, params, model="3d", options=options.planner)
     if not feasible(res0):
         return None
-    rot = rotation_matrix(1)
+    rot = quarter_turn(1)
     ref1 = NonicReference.between(ref.duration, np.zeros(2), rot @ v0, rot @ disp, rot @ v1)
     res1 = plan_shape_trajectory(ref1, params, model="3d", options=options.planner)
     if not feasible(res1):

@@ -15,6 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from gracenav.errors import ConfigError
 from gracenav.model.friction import friction_constants, friction_torque
+from gracenav.model.rotation import quarter_turn
 from gracenav.params import BallbotParams
 from gracenav.primitives.shape_planner import (
     ShapePlannerOptions,
@@ -31,7 +32,6 @@ __all__ = [
     "PrimitiveSet",
     "PrimitiveSetOptions",
     "TrimPrimitive",
-    "rotation_matrix",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -40,14 +40,6 @@ PrimitiveSample = TrajectorySample
 """Samples of a primitive: time (N,), states (N, 8), accelerations (N, 4),
 inputs (N, 2) and ball position state (N, 6) = x, y, ẋ, ẏ, ẍ, ÿ in the
 primitive's own frame (see :class:`gracenav.primitives.shape_planner.TrajectorySample`)."""
-
-
-def rotation_matrix(k: int) -> FloatArray:
-    """Rotation by k·90° counter-clockwise, shape (2, 2), exact integers."""
-    k %= 4
-    c = (1.0, 0.0, -1.0, 0.0)[k]
-    s = (0.0, 1.0, 0.0, -1.0)[k]
-    return np.array([[c, -s], [s, c]])
 
 
 def _frozen(a: ArrayLike) -> FloatArray:
@@ -152,9 +144,9 @@ class MotionPrimitive:
 
     def _rotated_fields(self, k: int) -> dict[str, Any]:
         return {
-            "displacement": _frozen(rotation_matrix(k) @ self.displacement),
-            "start_velocity": _frozen(rotation_matrix(k) @ self.start_velocity),
-            "end_velocity": _frozen(rotation_matrix(k) @ self.end_velocity),
+            "displacement": _frozen(quarter_turn(k) @ self.displacement),
+            "start_velocity": _frozen(quarter_turn(k) @ self.start_velocity),
+            "end_velocity": _frozen(quarter_turn(k) @ self.end_velocity),
             "rotation": (self.rotation + k) % 4,
         }
 
