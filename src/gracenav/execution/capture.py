@@ -30,6 +30,7 @@ from gracenav.library import PolicyLibrary, sweep_samples
 from gracenav.policies import MotionPolicy, PrimitiveKind, SampledPrimitive, rotate_pairs_by
 from gracenav.policies.catches import PUSHED, SETTLED, STILL, lean_class_of
 from gracenav.policies.domains import EllipsoidalDomain
+from gracenav.policies.placement import instantiated_reference
 from gracenav.sim import Reference
 
 __all__ = [
@@ -137,12 +138,7 @@ class PlacedPolicy:
     def reference(self, radius: float) -> tuple[Reference, FloatArray]:
         """World-frame reference (states, feed-forward torques) and reference x, y, ẋ,
         ẏ, ẍ, ÿ at the ticks (T + 1, 6), for a ball of ``radius`` (m)."""
-        prim = self.primitive
-        states = prim.states.copy()
-        states[:, 0:2] += self.start_xy / radius
-        position = prim.position.copy()
-        position[:, 0:2] += self.start_xy
-        return Reference(states, prim.inputs, prim.dt), position
+        return instantiated_reference(self.primitive, None, self.start_xy, radius)
 
     def outer_monitor(self) -> tuple[FloatArray, FloatArray]:
         """D'(t) at every tick in the world frame: centres (T+1, 4), shapes (T+1, 4, 4)."""

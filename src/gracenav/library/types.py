@@ -17,6 +17,7 @@ from gracenav.model.rotation import QUARTER_TURNS, quarter_turn, rotate_pairs
 from gracenav.palette import Palette
 from gracenav.policies import MotionPolicy, PrimitiveKind
 from gracenav.policies.domains import EllipsoidalDomain
+from gracenav.policies.placement import placed_positions
 
 __all__ = [
     "ORIENTATIONS",
@@ -329,12 +330,7 @@ class InstantiatedPolicy:
     def reference_positions(self) -> FloatArray:
         """Reference x, y, ẋ, ẏ, ẍ, ÿ at the control ticks in the world frame, shape
         (T + 1, 6) (m, m/s, m/s²)."""
-        pos = self.policy.primitive.position
-        r = self.rotation
-        out = np.empty_like(pos)
-        out[:, :2] = pos[:, :2] @ r.T + self.start_xy
-        out[:, 2:4] = pos[:, 2:4] @ r.T
-        out[:, 4:6] = pos[:, 4:6] @ r.T
+        out = placed_positions(self.policy.primitive.position, self.orientation, self.start_xy)
         out.setflags(write=False)
         return out
 

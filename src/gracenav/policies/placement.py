@@ -14,14 +14,27 @@ from gracenav.policies.policy import MotionPolicy
 from gracenav.policies.primitive import FloatArray, SampledPrimitive, rotate_pairs
 from gracenav.sim import Reference, simulate
 
-__all__ = []
+__all__ = [
+    "placed_positions",
+]
+
+
+def placed_positions(position: ArrayLike, k: int | None, origin: ArrayLike) -> FloatArray:
+    """Reference x, y, ẋ, ẏ, ... (pairs on the last axis) of a primitive placed on the
+    map: turned by k·90° about its start (``k`` None: already turned), its start moved
+    to ``origin`` (x, y) (m). A new array."""
+    out = rotate_pairs(position, k) if k is not None else np.array(position, dtype=np.float64)
+    out[..., 0:2] += np.asarray(origin, dtype=np.float64)
+    return out
 
 
 def instantiated_reference(
-    primitive: SampledPrimitive, k: int, origin: ArrayLike, radius: float
+    primitive: SampledPrimitive, k: int | None, origin: ArrayLike, radius: float
 ) -> tuple[Reference, FloatArray]:
-    """A primitive placed on the map: rotated by k·90° about its start, start moved to
-    ``origin`` (x, y) (m).
+    """A primitive placed on the map: rotated by k·90° about its start (``k`` None: it
+    is already turned, as a catch placed at a heading), start moved to ``origin``
+    (x, y) (m). The one placement of references: library policies, catches, shifts and
+    terminal regulators all run through it.
 
     Returns
     -------
@@ -31,11 +44,10 @@ def instantiated_reference(
         World-frame x, y, ẋ, ẏ, ẍ, ÿ of the reference.
     """
     o = np.asarray(origin, dtype=np.float64)
-    states = rotate_pairs(primitive.states, k)
-    states[:, 0:2] += o / radius
-    position = rotate_pairs(primitive.position, k)
-    position[:, 0:2] += o
-    return Reference(states, rotate_pairs(primitive.inputs, k), primitive.dt), position
+    states = placed_positions(primitive.states, k, o / radius)
+    position = placed_positions(primitive.position, k, o)
+    inputs = rotate_pairs(primitive.inputs, k) if k is not None else primitive.inputs
+    return Reference(states, inputs, primitive.dt), position
 
 
 @dataclass(frozen=True)
