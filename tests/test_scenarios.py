@@ -56,6 +56,19 @@ def test_fig5_every_start_reaches_the_goal_gracefully(fig5, tmp_path) -> None:
     for col in ("run", "t", "x", "y", "xdot", "ydot", "lean_x", "lean_y", "tau_x", "tau_y"):
         assert col in header
     assert (tmp_path / "events.csv").read_text().startswith("run,time,from,to")
+    # Both files are valid CSV: policy names hold commas ("...@0°(0, 0)") and are quoted.
+    import csv
+
+    with open(tmp_path / "events.csv", newline="") as f:
+        events = list(csv.reader(f))
+    assert len(events) == 1 + sum(len(ep.events) for ep in fig5.episodes)
+    assert all(len(row) == 8 for row in events)
+    assert any("," in row[5] for row in events[1:])
+    table = np.loadtxt(tmp_path / "trajectory.csv", delimiter=",", skiprows=1)
+    assert table.shape == (sum(ep.time.size for ep in fig5.episodes), len(header))
+    np.testing.assert_allclose(
+        table[: fig5.episodes[0].time.size, 1], fig5.episodes[0].time, atol=5e-7
+    )
     assert (tmp_path / "paths.png").stat().st_size > 10_000
 
 

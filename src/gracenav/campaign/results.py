@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import statistics
 from pathlib import Path
 from typing import Any
 
@@ -12,18 +13,22 @@ __all__ = ["plot_results", "summarise", "wilson_interval", "write_results"]
 
 
 def wilson_interval(successes: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
-    """Wilson score interval of a binomial proportion (default 95 %).
+    """Wilson score interval of a binomial proportion (default 95 %: ``z`` is the normal
+    quantile), by :meth:`scipy.stats.binomtest` ``.proportion_ci(method="wilson")``.
 
-    Returns (nan, nan) for ``n == 0``.
+    Returns (nan, nan) for ``n == 0``; the bounds are exactly 0 (no success) and 1 (no
+    failure) at the ends.
     """
     if n <= 0:
         return (math.nan, math.nan)
-    p = successes / n
-    d = 1.0 + z * z / n
-    c = (p + z * z / (2 * n)) / d
-    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
-    lo = 0.0 if successes == 0 else max(0.0, c - h)
-    hi = 1.0 if successes == n else min(1.0, c + h)
+    from scipy import stats
+
+    level = 2.0 * float(stats.norm.cdf(z)) - 1.0
+    ci = stats.binomtest(int(successes), int(n)).proportion_ci(
+        confidence_level=level, method="wilson"
+    )
+    lo = 0.0 if successes == 0 else max(0.0, float(ci.low))
+    hi = 1.0 if successes == n else min(1.0, float(ci.high))
     return (lo, hi)
 
 
@@ -39,12 +44,9 @@ def _fmt(v: float | None, digits: int = 1) -> str:
 
 
 def _median(values: list[float]) -> float | None:
-    """Median (the mean of the middle two for an even count); None if empty."""
-    v = sorted(values)
-    n = len(v)
-    if n == 0:
-        return None
-    return v[n // 2] if n % 2 else 0.5 * (v[n // 2 - 1] + v[n // 2])
+    """:func:`statistics.median` (the mean of the middle two for an even count); None
+    if empty."""
+    return statistics.median(values) if values else None
 
 
 def _values(rows: list[dict[str, Any]], key: str) -> list[float]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import io
 import math
 from pathlib import Path
 from typing import Any
@@ -126,9 +127,10 @@ def run_balance(args: argparse.Namespace) -> int:
         )
         p = result.position_state
         table = np.column_stack([result.time, p, result.lean, result.inputs])
-        header = "t,x,y,xdot,ydot,lean_x,lean_y,tau_x,tau_y"
-        lines = [header] + [",".join(f"{v:.9g}" for v in row) for row in table]
-        atomic_write_text(out.staging / "trajectory.csv", "\n".join(lines) + "\n")
+        text = io.StringIO()
+        np.savetxt(text, table, fmt="%.9g", delimiter=",")
+        header = "t,x,y,xdot,ydot,lean_x,lean_y,tau_x,tau_y\n"
+        atomic_write_text(out.staging / "trajectory.csv", header + text.getvalue())
         plot_balance(
             result.time,
             p[:, :2],

@@ -3,9 +3,13 @@ as a unit."""
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from gracenav._util.io import atomic_write_text
 from gracenav.scenarios.runs import ScenarioResult, _json_value
@@ -46,41 +50,70 @@ def write_outputs(result: ScenarioResult, out: str | Path, *, animation: bool = 
     path = out / "summary.json"
     atomic_write_text(path, json.dumps(summary_dict(result), indent=2, allow_nan=False) + "\n")
     written.append(path)
-    rows = ["run,t,x,y,xdot,ydot,lean_x,lean_y,tau_x,tau_y,ref_x,ref_y,policy"]
+    header = "run,t,x,y,xdot,ydot,lean_x,lean_y,tau_x,tau_y,ref_x,ref_y,policy"
+    fmt = ["%d", "%.6f", "%.6f", "%.6f", "%.6f", "%.6f", "%.6e", "%.6e", "%.5f", "%.5f"]
+    fmt += ["%.6f", "%.6f", "%d"]
+    table = io.StringIO()
     for k, ep in enumerate(result.episodes):
-        p = ep.position_state
-        for i in range(ep.time.size):
-            pol = int(ep.policy[i])
-            rows.append(
-                f"{k},{ep.time[i]:.6f},{p[i, 0]:.6f},{p[i, 1]:.6f},{p[i, 2]:.6f},{p[i, 3]:.6f},"
-                f"{ep.lean[i, 0]:.6e},{ep.lean[i, 1]:.6e},{ep.inputs[i, 0]:.5f},"
-                f"{ep.inputs[i, 1]:.5f},{ep.reference[i, 0]:.6f},{ep.reference[i, 1]:.6f},{pol}"
-            )
+        columns = (
+            np.full(ep.time.size, k),
+            ep.time,
+            ep.position_state,
+            ep.lean,
+            ep.inputs,
+            ep.reference[:, :2],
+            ep.policy,
+        )
+        rows = np.column_stack(columns)
+        np.savetxt(table, rows, fmt=fmt, delimiter=",")
     path = out / "trajectory.csv"
-    atomic_write_text(path, "\n".join(rows) + "\n")
+    atomic_write_text(path, header + "\n" + table.getvalue())
     written.append(path)
 
     def name(i: int) -> str:
         return result.library.policy(i).name if i >= 0 else ""
 
-    ev = ["run,time,from,to,from_name,to_name,reason,latency_ms"]
+    events = io.StringIO()
+    writer = csv.writer(events, lineterminator="\n")
+    writer.writerow(["run", "time", "from", "to", "from_name", "to_name", "reason", "latency_ms"])
     for k, ep in enumerate(result.episodes):
         lines = [
             (
                 e.time,
                 0,
-                f"{k},{e.time:.6f},{e.from_policy},{e.to_policy},{name(e.from_policy)},"
-                f"{name(e.to_policy)},{e.reason.value},",
+                [
+                    k,
+                    f"{e.time:.6f}",
+                    e.from_policy,
+                    e.to_policy,
+                    name(e.from_policy),
+                    name(e.to_policy),
+                    e.reason.value,
+                    "",
+                ],
             )
             for e in ep.events
         ]
         lines += [  # replans: reason replan:<why>, and the wall time of the repair
-            (rp.time, 1, f"{k},{rp.time:.6f},,,,,replan:{rp.reason},{1000 * rp.latency_s:.3f}")
+            (
+                rp.time,
+                1,
+                [
+                    k,
+                    f"{rp.time:.6f}",
+                    "",
+                    "",
+                    "",
+                    "",
+                    f"replan:{rp.reason}",
+                    f"{1000 * rp.latency_s:.3f}",
+                ],
+            )
             for rp in getattr(ep, "replans", ())
         ]
-        ev += [line for _, _, line in sorted(lines, key=lambda v: (v[0], v[1]))]
+        writer.writerows(line for _, _, line in sorted(lines, key=lambda v: (v[0], v[1])))
     path = out / "events.csv"
-    atomic_write_text(path, "\n".join(ev) + "\n")
+    atomic_write_text(path, events.getvalue())
     written.append(path)
     written.append(plot_paths(result, out / "paths.png"))
     written.append(plot_lean(result, out / "lean.png"))
