@@ -9,7 +9,7 @@ instantiated on a map M and kept only where they are obstacle free). It comes fr
   (:mod:`~gracenav.world.geometry`), given as a mapping or a YAML/JSON file
   (:mod:`~gracenav.world.inline`), rasterised at a chosen resolution
   (:mod:`~gracenav.world.occupancy`); the exact shapes are kept for plotting; or
-* the synthetic office of :mod:`~gracenav.world.synthetic`.
+* seeded synthetic offices, forests and warehouses of :mod:`~gracenav.world.synthetic`.
 
 :func:`load_map` reads any of the first two. Every map is held to a budget of
 :data:`MAX_MAP_CELLS` cells, checked before its grid or image is allocated.
@@ -29,7 +29,7 @@ from gracenav.world.loading import MAX_MAP_FILE_BYTES, load_map
 from gracenav.world.moving import MovingObstacle
 from gracenav.world.occupancy import DEFAULT_RESOLUTION, MAP_BYTES_PER_CELL, MAX_MAP_CELLS, WorldMap
 from gracenav.world.ros_map import save_ros_map
-from gracenav.world.synthetic import office_map
+from gracenav.world.synthetic import footprint_connected, forest_map, office_map, warehouse_map
 
 __all__ = [
     "DEFAULT_RESOLUTION",
@@ -44,7 +44,10 @@ __all__ = [
     "Rectangle",
     "Shape",
     "WorldMap",
+    "footprint_connected",
+    "forest_map",
     "load_map",
     "office_map",
     "save_ros_map",
+    "warehouse_map",
 ]
