@@ -1,0 +1,174 @@
+"""Maps a user brings: gracenav and the decoupled baseline side by side on seeded
+forests, warehouses and offices.
+
+Each map class draws seeded tasks, each checked possible for the footprint first
+(:func:`gracenav.world.footprint_connected`):
+
+* ``forest``: a 4.5 m x 16 m field of 0.15 m posts (``forest_map``, density 0.06),
+  start (1, 2.25), goal (15, 2.25), at rest; fields the footprint cannot cross are
+  drawn again;
+* ``warehouse``: a 30 m x 50 m warehouse at 3 cm (``warehouse_map``), start and goal
+  at rest with clearance >= footprint + 0.3 m, >= 5 m apart;
+* ``office``: a 20 m office at 5 cm with 0.8 m doors (``office_map``), tasks drawn as
+  in the warehouse.
+
+Each task runs through :func:`gracenav.scenarios.run_scenario` with default settings
+(footprint 0.2 m, the scenario defaults otherwise, 120 s), the map passed as a ROS map_server
+file, for gracenav and for the decoupled baseline. The table gives per map class and
+planner: tasks, goal reached, refused (with the reasons, shortened), contacts, the
+median time to goal and the median wall time per task.
+
+    OPENBLAS_NUM_THREADS=1 python bench/bench_maps.py [--tasks 8] [--seed 0]
+        [--classes forest warehouse office] [--max-halvings N]
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse
+import collections
+import statistics
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gracenav.errors import GracenavError
+from gracenav.scenarios import parse_scenario, run_scenario
+from gracenav.world import (
+    WorldMap,
+    footprint_connected,
+    forest_map,
+    office_map,
+    save_ros_map,
+    warehouse_map,
+)
+
+FOOT = 0.2
+
+
+def _draw_pair(world: WorldMap, rng: np.random.Generator) -> tuple[Any, Any] | None:
+    """Start and goal at rest, clearance >= footprint + 0.3 m, >= 5 m apart, connected."""
+    (x0, y0), (x1, y1) = world.bounds
+    for _ in range(2000):
+        p = rng.uniform((x0, y0), (x1, y1), size=(2, 2))
+        if np.linalg.norm(p[0] - p[1]) < 5.0:
+            continue
+        if np.any(world.clearance(p) < FOOT + 0.3):
+            continue
+        if footprint_connected(world, p[0], p[1], FOOT):
+            return tuple(p[0]), tuple(p[1])
+    return None
+
+
+def tasks(kind: str, n: int, seed: int) -> list[tuple[WorldMap, Any, Any]]:
+    """``n`` seeded tasks (map, start xy, goal xy) of a map class."""
+    rng = np.random.default_rng(seed)
+    out: list[tuple[WorldMap, Any, Any]] = []
+    k = 0
+    while len(out) < n and k < 20 * n:
+        k += 1
+        if kind == "forest":
+            world = forest_map(seed=seed * 1000 + k)
+            start, goal = (1.0, 2.25), (15.0, 2.25)
+            if footprint_connected(world, start, goal, FOOT):
+                out.append((world, start, goal))
+            continue
+        if kind == "warehouse":
+            world = warehouse_map(30.0, 50.0, resolution=0.03, seed=seed * 1000 + k)
+        else:
+            world = office_map(20.0, resolution=0.05, seed=seed * 1000 + k, door=0.8)
+        pair = _draw_pair(world, rng)
+        if pair is not None:
+            out.append((world, *pair))
+    return out
+
+
+def run_one(
+    path: Path, start: Any, goal: Any, planner: str, max_halvings: int | None = None
+) -> dict[str, Any]:
+    """One task through run_scenario: outcome, time to goal, contact, wall time."""
+    data: dict[str, Any] = {
+        "name": f"{path.stem} {planner}",
+        "map": {"ros_map": str(path)},
+        "robot": {"footprint_radius": FOOT},
+        "planner": {"cost": "time"},
+        "task": {
+            "kind": "point_to_point",
+            "goal": [*goal, 0.0, 0.0],
+            "starts": [[*start, 0.0, 0.0]],
+        },
+        "simulation": {"max_time": 120},
+    }
+    if max_halvings is not None:
+        data["planner"]["max_halvings"] = max_halvings
+    if planner == "decoupled":
+        data["planner"]["kind"] = "decoupled"
+    t0 = time.perf_counter()
+    try:
+        result = run_scenario(parse_scenario(data, source=str(path)))
+    except GracenavError as exc:
+        msg = str(exc).split(": ", 1)[-1]
+        return {"refused": msg[:90], "wall": time.perf_counter() - t0}
+    run = result.runs[0]
+    ep = result.episodes[0]
+    return {
+        "reached": bool(run.reached_goal),
+        "contact": bool(run.min_clearance_m < 0.0),
+        "time": float(ep.time[-1]),
+        "wall": time.perf_counter() - t0,
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--tasks", type=int, default=8)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument(
+        "--classes",
+        nargs="+",
+        default=["forest", "warehouse", "office"],
+        choices=("forest", "warehouse", "office"),
+    )
+    ap.add_argument(
+        "--max-halvings",
+        type=int,
+        default=None,
+        help="planner.max_halvings of every task (default: the scenario default)",
+    )
+    args = ap.parse_args()
+    print("class      planner     tasks  reached  refused  contacts  median_time_s  median_wall_s")
+    with tempfile.TemporaryDirectory() as tmp:
+        for kind in args.classes:
+            drawn = tasks(kind, args.tasks, args.seed)
+            paths = []
+            for i, (world, _, _) in enumerate(drawn):
+                path = Path(tmp) / f"{kind}_{i}.yaml"
+                save_ros_map(world, path, image_format="png")
+                paths.append(path)
+            for planner in ("gracenav", "decoupled"):
+                rows = [
+                    run_one(p, s, g, planner, args.max_halvings)
+                    for p, (_, s, g) in zip(paths, drawn, strict=True)
+                ]
+                reached = sum(1 for r in rows if r.get("reached"))
+                refused = collections.Counter(r["refused"] for r in rows if "refused" in r)
+                contacts = sum(1 for r in rows if r.get("contact"))
+                times = [r["time"] for r in rows if r.get("reached")]
+                med = f"{statistics.median(times):.1f}" if times else "-"
+                wall = statistics.median(r["wall"] for r in rows) if rows else float("nan")
+                print(
+                    f"{kind:10s} {planner:10s} {len(rows):6d} {reached:8d} "
+                    f"{sum(refused.values()):8d} {contacts:9d} {med:>14s} {wall:14.1f}"
+                )
+                for why, count in refused.most_common():
+                    print(f"    refused {count}x: {why}")
+
+
+if __name__ == "__main__":
+    main()
