@@ -266,6 +266,22 @@ def test_halvings_over_budget_give_the_estimate(tmp_path, capsys) -> None:
     assert "budget of 2e+06" in err and re.search(r"max_halvings <= [1-7]\b", err)
 
 
+def test_the_instantiation_budget_is_not_the_decoupled_baselines() -> None:
+    """The decoupled baseline builds no library: a map over gracenav's instantiation
+    budget is refused for gracenav only."""
+    from gracenav.errors import ConfigError
+    from gracenav.palette import load_palette
+    from gracenav.scenarios import check_scenario, load_scenario_map, parse_scenario
+
+    data = scenario(**{"planner.max_halvings": 8})
+    sc = parse_scenario(data, source="big.yaml")
+    world = load_scenario_map(sc)
+    with pytest.raises(ConfigError, match="policy instantiations"):
+        check_scenario(sc, world, load_palette())
+    dec = parse_scenario({**data, "planner": {"kind": "decoupled", "max_halvings": 8}}, source="d")
+    check_scenario(dec, world, load_palette())  # no error
+
+
 @pytest.mark.parametrize(
     ("patch", "message"),
     [
