@@ -105,7 +105,7 @@ def run_scenario(
     """Build the library on the scenario's map and run every start of its task.
 
     A scenario with ``planner.kind: decoupled`` runs the plan-then-track baseline
-    instead (:func:`gracenav.baseline.run_decoupled`, no library).
+    instead (:func:`gracenav.scenarios.decoupled.run_decoupled`, no library).
 
     Parameters
     ----------
