@@ -67,6 +67,21 @@ def _on_sigint(signum: int, frame: Any) -> None:
     raise KeyboardInterrupt
 
 
+def _quiet_interrupts(previous: Any) -> Any:
+    """An unraisable hook that drops the KeyboardInterrupt of our signal handlers when
+    Python ignores it (it ran in a callback: an import lock's, a weak reference's);
+    :func:`note_signal` has recorded the signal and :func:`main` reports it. Left to
+    the default hook, such an exception makes the interpreter kill itself with SIGINT
+    at exit (status -2 instead of 130)."""
+
+    def hook(unraisable: Any) -> None:
+        if unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
+            return
+        previous(unraisable)
+
+    return hook
+
+
 def _one_line(text: str) -> str:
     return " ".join(str(text).split())
 
@@ -83,9 +98,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     previous = previous_int = None
     note_signal(None)
+    previous_hook = sys.unraisablehook
     if threading.current_thread() is threading.main_thread():
         previous = signal.signal(signal.SIGTERM, _on_sigterm)
         previous_int = signal.signal(signal.SIGINT, _on_sigint)
+        sys.unraisablehook = _quiet_interrupts(previous_hook)
     try:
         status: int = args.func(args)
         if pending_signal() is not None:  # its exception was swallowed on the way
@@ -119,6 +136,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
         return 1
     finally:
+        sys.unraisablehook = previous_hook
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
         if previous_int is not None:
@@ -126,5 +144,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     return status
 
 
+def entry() -> None:
+    """The ``gracenav`` command: :func:`main`, then exit with its status.
+
+    After SIGINT or SIGTERM the process ends at once (``os._exit``, streams flushed):
+    CPython kills itself with SIGINT at exit when the signal's KeyboardInterrupt passed
+    through code run by ``exec`` (a dataclass being created while a module is imported),
+    even though :func:`main` handled it, which would turn status 130 into −2.
+    """
+    import os
+
+    status = main()
+    if pending_signal() is not None:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(status)
+    sys.exit(status)
+
+
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    entry()

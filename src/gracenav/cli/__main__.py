@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import sys
+from gracenav.cli import entry
 
-from gracenav.cli import main
-
-sys.exit(main())
+entry()
