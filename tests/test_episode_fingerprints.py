@@ -6,10 +6,13 @@ on the code that simulated whole policies in one compiled loop (commit fbcb505).
 same cases run here through :meth:`HybridController.step` on a
 :class:`gracenav.sim.Model3DPlant`: the shipped scenarios, pushes (caught by library
 policies and by catches), balancing mode with and without resumption, a drag, moving
-obstacles and model mismatch give the same states, inputs, policies and references
-bit for bit. The decoupled baseline's references differ by ~1e-13 from run to run of
-the same code (the shape planner's results depend on the process's history), so its
-episodes are compared by outcome and final state within 1e-9. Position noise is now
+obstacles and model mismatch give the same status, length, switch events, goals and
+replans, and the same states, inputs and references (sampled once a second) within
+1e-9. (When the per-tick controller was introduced they were equal bit for bit, as the
+digests in the file show on the machine that made it; a test of the last bits would
+fail on another BLAS or CPU for no reason, so the digests are not asserted.) The
+decoupled baseline's references differ by ~1e-13 from run to run of the same code (the
+shape planner's results depend on the process's history). Position noise is now
 drawn once per tick for the whole run and put on the measured state the whole
 controller sees (before, it was drawn anew for every segment from the same seed and
 reached the control law only): those runs are compared by outcome.
@@ -38,7 +41,7 @@ def _final(fp: dict) -> np.ndarray:
 
 @pytest.mark.slow
 def test_episodes_equal_the_whole_segment_simulation() -> None:
-    exact = 0
+    same = 0
     for name, run in ef.cases():
         got = [ef.fingerprint(ep) for ep in run()]
         want = REFERENCE[name]
@@ -52,9 +55,11 @@ def test_episodes_equal_the_whole_segment_simulation() -> None:
             assert a["events"] == b["events"], name
             assert a["goals_reached"] == b["goals_reached"], name
             assert a["samples"] == b["samples"], name
-            if name.endswith("/decoupled"):
-                np.testing.assert_allclose(_final(a), _final(b), rtol=0, atol=1e-9, err_msg=name)
-                continue
-            assert a == b, name
-            exact += 1
-    assert exact == 28  # every hybrid-controller episode without noise, bit for bit
+            assert a["replans"] == b["replans"] and a["captures"] == b["captures"], name
+            np.testing.assert_allclose(_final(a), _final(b), rtol=0, atol=1e-9, err_msg=name)
+            np.testing.assert_allclose(
+                np.array(a["trace"]), np.array(b["trace"]), rtol=0, atol=1e-9, err_msg=name
+            )
+            if not name.endswith("/decoupled"):
+                same += 1
+    assert same == 28  # every hybrid-controller episode without noise
