@@ -146,7 +146,9 @@ def compute(quick: bool = False) -> dict[str, list[dict[str, Any]]]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, required=True)
-    ap.add_argument("--quick", action="store_true", help="the cases the test runs only")
+    ap.add_argument(
+        "--quick", action="store_true", help="fewer cases (other pushes than the reference file)"
+    )
     args = ap.parse_args()
     out = compute(args.quick)
     args.out.write_text(json.dumps(out, indent=1) + "\n")

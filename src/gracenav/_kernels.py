@@ -180,6 +180,38 @@ def _rk4(c, fr, x, tau, force, h, wm, wh, wj, wr, k1, k2, k3, k4, xt):
 
 
 @njit(cache=True, error_model="numpy")
+def _kick(c, x, impulse, wm, wj, wr, dq):
+    """Velocity jump M⁻¹ Jᵀ i of a world impulse ``impulse`` (3,) (N s) on the body
+    centre of mass, added to ``x`` (8,) in place; the rest are workspaces."""
+    mass_matrix(c, x[:4], wm)
+    com_jacobian(c, x[:4], wj)
+    for i in range(4):
+        wr[i] = wj[0, i] * impulse[0] + wj[1, i] * impulse[1] + wj[2, i] * impulse[2]
+    solve_spd(wm, wr, dq)
+    for i in range(4):
+        x[4 + i] += dq[i]
+
+
+@njit(cache=True, error_model="numpy")
+def _period(c, fr, x, tau, f, base, tethered, drag, drag_gain, h, substeps, ws):
+    """``substeps`` RK4 steps of ``h`` (s) with ``tau`` (2,) held and the world force
+    ``f`` (3,) on the body; while ``tethered``, f[0:2] is ``base`` (3,) plus a damper of
+    ``drag_gain`` toward the velocity ``drag[1:3]``, re-evaluated every step. ``ws``:
+    workspaces (wm, wh, wj, wr, k1, k2, k3, k4, xt). One period of the plant, shared by
+    :func:`closed_loop` and :func:`plant_advance`."""
+    wm, wh, wj, wr, k1, k2, k3, k4, xt = ws
+    for _s in range(substeps):
+        if tethered:
+            com_jacobian(c, x[:4], wj)
+            for i in range(2):
+                vel = 0.0
+                for j in range(4):
+                    vel += wj[i, j] * x[4 + j]
+                f[i] = base[i] + drag_gain * (drag[1 + i] - vel)
+        _rk4(c, fr, x, tau, f, h, wm, wh, wj, wr, k1, k2, k3, k4, xt)
+
+
+@njit(cache=True, error_model="numpy")
 def closed_loop(
     c_plant,
     fr_plant,
@@ -248,9 +280,11 @@ def closed_loop(
     xt = np.empty(8)
     tau = np.empty(2)
     f = np.zeros(3)
+    zero3 = np.zeros(3)
     zero4 = np.zeros(4)
     dq = np.empty(4)
     pv = np.empty(4)
+    ws = (wm, wh, wj, wr, k1, k2, k3, k4, xt)
     for b in range(nb):
         x = x0[b].copy()
         max_lean = 0.0
@@ -267,17 +301,7 @@ def closed_loop(
             if use_impulse and (
                 impulse[n, 0] != 0.0 or impulse[n, 1] != 0.0 or impulse[n, 2] != 0.0
             ):
-                mass_matrix(c_plant, x[:4], wm)
-                com_jacobian(c_plant, x[:4], wj)
-                for i in range(4):
-                    wr[i] = (
-                        wj[0, i] * impulse[n, 0]
-                        + wj[1, i] * impulse[n, 1]
-                        + wj[2, i] * impulse[n, 2]
-                    )
-                solve_spd(wm, wr, dq)
-                for i in range(4):
-                    x[4 + i] += dq[i]
+                _kick(c_plant, x, impulse[n], wm, wj, wr, dq)
             meas = zero4
             if use_noise:
                 meas = noise[0, n] if one_noise else noise[b, n]
@@ -317,26 +341,25 @@ def closed_loop(
             if (exit_tick >= 0 and stop_on_exit) or fall_tick >= 0 or n == nt:
                 last = n
                 break
-            if use_force:
-                f[0] = force[n, 0]
-                f[1] = force[n, 1]
-                f[2] = force[n, 2]
-            else:
-                f[0] = 0.0
-                f[1] = 0.0
-                f[2] = 0.0
+            base = force[n] if use_force else zero3
+            for i in range(3):
+                f[i] = base[i]
             tethered = use_tether and tether[n, 0] > 0.0
-            for _s in range(substeps):
-                if tethered:
-                    com_jacobian(c_plant, x[:4], wj)
-                    for i in range(2):
-                        vel = 0.0
-                        for j in range(4):
-                            vel += wj[i, j] * x[4 + j]
-                        f[i] = (force[n, i] if use_force else 0.0) + tether_gains[0] * (
-                            tether[n, 1 + i] - vel
-                        )
-                _rk4(c_plant, fr_plant, x, tau, f, h, wm, wh, wj, wr, k1, k2, k3, k4, xt)
+            drag = tether[n] if use_tether else zero3
+            _period(
+                c_plant,
+                fr_plant,
+                x,
+                tau,
+                f,
+                base,
+                tethered,
+                drag,
+                tether_gains[0],
+                h,
+                substeps,
+                ws,
+            )
         summary_out[b, 0] = last
         summary_out[b, 1] = max_lean
         summary_out[b, 2] = max_tau
@@ -379,17 +402,7 @@ def tracking_tick(
 def plant_kick(c, x, impulse):
     """Apply a world impulse ``impulse`` (3,) (N s) on the body centre of mass to the
     state ``x`` (8,) in place (the velocity jump M⁻¹ Jᵀ i), as :func:`closed_loop`."""
-    wm = np.empty((4, 4))
-    wj = np.empty((3, 4))
-    wr = np.empty(4)
-    dq = np.empty(4)
-    mass_matrix(c, x[:4], wm)
-    com_jacobian(c, x[:4], wj)
-    for i in range(4):
-        wr[i] = wj[0, i] * impulse[0] + wj[1, i] * impulse[1] + wj[2, i] * impulse[2]
-    solve_spd(wm, wr, dq)
-    for i in range(4):
-        x[4 + i] += dq[i]
+    _kick(c, x, impulse, np.empty((4, 4)), np.empty((3, 4)), np.empty(4), np.empty(4))
 
 
 @njit(cache=True, error_model="numpy")
@@ -400,26 +413,31 @@ def plant_advance(c, fr, x, torque, limit, force, drag, drag_gain, dt, substeps)
     (3,) (N) on the body centre of mass, and while ``drag[0] > 0`` a horizontal damper
     of ``drag_gain`` (N s/m) pulling the body toward the velocity ``drag[1:3]`` (m/s);
     the same arithmetic as one period of :func:`closed_loop`."""
-    h = dt / substeps
-    wm = np.empty((4, 4))
-    wh = np.empty(4)
-    wj = np.empty((3, 4))
-    wr = np.empty(4)
-    k1 = np.empty(8)
-    k2 = np.empty(8)
-    k3 = np.empty(8)
-    k4 = np.empty(8)
-    xt = np.empty(8)
+    ws = (
+        np.empty((4, 4)),
+        np.empty(4),
+        np.empty((3, 4)),
+        np.empty(4),
+        np.empty(8),
+        np.empty(8),
+        np.empty(8),
+        np.empty(8),
+        np.empty(8),
+    )
     tau = np.empty(2)
     for i in range(2):
         tau[i] = min(max(torque[i], -limit), limit)
-    f = force.copy()
-    for _s in range(substeps):
-        if drag[0] > 0.0:
-            com_jacobian(c, x[:4], wj)
-            for i in range(2):
-                vel = 0.0
-                for j in range(4):
-                    vel += wj[i, j] * x[4 + j]
-                f[i] = force[i] + drag_gain * (drag[1 + i] - vel)
-        _rk4(c, fr, x, tau, f, h, wm, wh, wj, wr, k1, k2, k3, k4, xt)
+    _period(
+        c,
+        fr,
+        x,
+        tau,
+        force.copy(),
+        force,
+        drag[0] > 0.0,
+        drag,
+        drag_gain,
+        dt / substeps,
+        substeps,
+        ws,
+    )
