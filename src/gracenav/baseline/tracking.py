@@ -124,8 +124,8 @@ def track_decoupled(
     PlanningError
         If the first plan fails.
     """
-    from gracenav.execution import Episode, TaskStatus, drive
-    from gracenav.sim import SimulationOptions, make_plant
+    from gracenav.execution import Episode, ExecutionLog, TaskStatus, drive
+    from gracenav.sim import SimulationOptions
 
     sim = simulation if simulation is not None else SimulationOptions()
     plant_params = plant_params if plant_params is not None else gains.params
@@ -139,14 +139,7 @@ def track_decoupled(
         goal_tolerance=goal_tolerance,
         options=options,
     )
-    robot = make_plant(
-        plant,
-        plant_params,
-        substeps=sim.substeps,
-        position_noise_std=sim.position_noise_std,
-        velocity_noise_std=sim.velocity_noise_std,
-        seed=sim.seed,
-    )
+    robot = sim.plant(plant, plant_params)
     robot.reset(np.asarray(x0, dtype=float))
     controller.reset(robot.measure(), fall_lean=sim.fall_lean)
     trace = drive(
@@ -157,20 +150,14 @@ def track_decoupled(
         disturbances=disturbances,
     )
     status = controller.status
-    episode = Episode(
-        time=trace.time,
-        states=trace.states,
-        inputs=trace.inputs,
-        policy=trace.policy,
-        reference=trace.reference,
+    log = ExecutionLog(
         events=(),
         status=status,
         goals_reached=((trace.time[-1], 0),) if status is TaskStatus.GOAL_REACHED else (),
         tree_seconds=tuple(pl.seconds for pl in controller.plans),
-        radius=trace.radius,
         replans=tuple(controller.log),
     )
-    return episode, controller.plans
+    return Episode.from_trace(trace, log), controller.plans
 
 
 class DecoupledController:

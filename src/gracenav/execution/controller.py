@@ -49,7 +49,7 @@ from gracenav.planning.graph import PreparesGraph
 from gracenav.planning.repair import HOLD_MARGIN
 from gracenav.policies import PrimitiveKind, flat_position_state
 from gracenav.sim import Disturbance, position_state
-from gracenav.sim.plant import CONTROL_RATE, Plant, make_plant
+from gracenav.sim.plant import CONTROL_RATE, Plant
 from gracenav.world.moving import MovingObstacle
 
 __all__ = ["HybridController"]
@@ -476,14 +476,7 @@ class HybridController:
         options = options if options is not None else ExecutionOptions()
         if plant is None:
             sim = options.simulation
-            plant = make_plant(
-                options.plant,
-                self.palette.params,
-                substeps=sim.substeps,
-                position_noise_std=sim.position_noise_std,
-                velocity_noise_std=sim.velocity_noise_std,
-                seed=sim.seed,
-            )
+            plant = sim.plant(options.plant, self.palette.params)
         plant.reset(np.asarray(x0, dtype=float))
         self.reset(
             plant.measure(),
@@ -500,20 +493,4 @@ class HybridController:
             max_ticks=self._task.max_ticks + 1,
             disturbances=disturbances,
         )
-        log = self.log()
-        return Episode(
-            time=trace.time,
-            states=trace.states,
-            inputs=trace.inputs,
-            policy=trace.policy,
-            reference=trace.reference,
-            events=log.events,
-            status=log.status,
-            goals_reached=log.goals_reached,
-            tree_seconds=log.tree_seconds,
-            radius=trace.radius,
-            replans=log.replans,
-            blocked_time=log.blocked_time,
-            moving_obstacles=tuple(moving_obstacles),
-            captures=log.captures,
-        )
+        return Episode.from_trace(trace, self.log(), moving_obstacles)

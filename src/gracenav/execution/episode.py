@@ -106,6 +106,28 @@ class Episode:
     moving_obstacles: tuple[MovingObstacle, ...] = ()
     captures: tuple[tuple[float, CapturePlan], ...] = ()
 
+    @classmethod
+    def from_trace(
+        cls, trace: Trace, log: ExecutionLog, moving_obstacles: Sequence[MovingObstacle] = ()
+    ) -> Episode:
+        """The episode of a :func:`drive` run: its samples and the controller's log."""
+        return cls(
+            time=trace.time,
+            states=trace.states,
+            inputs=trace.inputs,
+            policy=trace.policy,
+            reference=trace.reference,
+            events=log.events,
+            status=log.status,
+            goals_reached=log.goals_reached,
+            tree_seconds=log.tree_seconds,
+            radius=trace.radius,
+            replans=log.replans,
+            blocked_time=log.blocked_time,
+            moving_obstacles=tuple(moving_obstacles),
+            captures=log.captures,
+        )
+
     @property
     def position_state(self) -> FloatArray:
         """Ball [x, y, ẋ, ẏ] at each tick (m, m/s), shape (N, 4)."""

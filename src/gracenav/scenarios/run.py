@@ -137,7 +137,6 @@ def run_scenario(
     """
     from gracenav.execution import HybridController
     from gracenav.palette import load_palette
-    from gracenav.sim import make_plant
 
     palette = palette if palette is not None else load_palette()
     if scenario.planner == "decoupled":
@@ -163,14 +162,7 @@ def run_scenario(
     def run(x0: np.ndarray) -> Any:
         hc = HybridController(library, graph, criterion=scenario.cost)
         sim = options.simulation
-        plant = make_plant(
-            scenario.plant,
-            plant_params,
-            substeps=sim.substeps,
-            position_noise_std=sim.position_noise_std,
-            velocity_noise_std=sim.velocity_noise_std,
-            seed=sim.seed,
-        )
+        plant = sim.plant(scenario.plant, plant_params)
         return hc.run(
             x0,
             scenario.goals,

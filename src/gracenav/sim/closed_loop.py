@@ -24,7 +24,7 @@ from gracenav.errors import ConfigError
 from gracenav.model.friction import friction_constants
 from gracenav.params import BallbotParams
 from gracenav.sim.disturbances import Disturbance, FloatArray, _disturbance_arrays
-from gracenav.sim.plant import PLANT_KINDS, PlantKind
+from gracenav.sim.plant import PLANT_KINDS, Model3DPlant, MujocoPlant, PlantKind, make_plant
 from gracenav.sim.state import position_state, state_from_position
 
 __all__ = [
@@ -144,6 +144,20 @@ class SimulationOptions:
         for name in ("position_noise_std", "velocity_noise_std"):
             if not getattr(self, name) >= 0.0:
                 raise ConfigError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+
+    def plant(
+        self, kind: PlantKind, params: BallbotParams | None = None
+    ) -> Model3DPlant | MujocoPlant:
+        """A shipped plant of ``kind`` (:func:`gracenav.sim.make_plant`) with these
+        substeps, measurement noise and seed."""
+        return make_plant(
+            kind,
+            params,
+            substeps=self.substeps,
+            position_noise_std=self.position_noise_std,
+            velocity_noise_std=self.velocity_noise_std,
+            seed=self.seed,
+        )
 
 
 class StopReason(enum.Enum):
