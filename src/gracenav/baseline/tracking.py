@@ -253,7 +253,7 @@ class DecoupledController:
         return True
 
     def _begin(self) -> None:
-        from gracenav.execution.supervisor import _Segment
+        from gracenav.execution.supervisor import Segment
         from gracenav.sim import Reference
 
         if self.tracking:
@@ -270,7 +270,7 @@ class DecoupledController:
             shapes = np.zeros((n + 1, 4, 4))
             shapes[:, 0, 0] = shapes[:, 1, 1] = self.err2
             centers = np.ascontiguousarray(ref_pos[: n + 1, :4])
-        self.segment = _Segment(
+        self.segment = Segment(
             BASELINE_POLICY,
             ref.states[: n + 1],
             ref.inputs[: n + 1],
@@ -283,7 +283,7 @@ class DecoupledController:
     def step(self, t: float, x: ArrayLike, *, held: bool = False) -> Any:
         """The command (:class:`gracenav.execution.Command`) for one tick."""
         from gracenav.execution import Command, TaskStatus
-        from gracenav.execution.supervisor import _NO_CENTER, _NO_SHAPE
+        from gracenav.execution.supervisor import fallen
         from gracenav.sim import position_state
 
         xs = np.asarray(x, dtype=float)
@@ -299,15 +299,10 @@ class DecoupledController:
                 continue
             seg = self.segment
             k = seg.k
-            if not (abs(xs[2]) <= self.fall_lean and abs(xs[3]) <= self.fall_lean):
+            if fallen(xs, self.fall_lean):
                 self.status = TaskStatus.FELL
                 break
-            if seg.centers is not None:
-                tau, val = self.law(
-                    xs, seg.ref_states[k], seg.ref_inputs[k], seg.centers[k], seg.shapes[k]
-                )
-            else:
-                tau, val = self.law(xs, seg.ref_states[k], seg.ref_inputs[k], _NO_CENTER, _NO_SHAPE)
+            tau, val = seg.command(self.law, xs)
             exited = val > 1.0
             if exited or k == seg.n:
                 self.segment = None

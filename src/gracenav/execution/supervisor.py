@@ -47,7 +47,7 @@ if TYPE_CHECKING:
     from gracenav.params import BallbotParams
     from gracenav.planning import LazyPolicyTree, PolicyTree
 
-__all__ = ["Planner", "Supervisor"]
+__all__ = ["Planner", "Segment", "Supervisor", "fallen"]
 
 FloatArray = NDArray[np.float64]
 
@@ -100,7 +100,7 @@ class Planner(Protocol):
 
 
 @dataclass
-class _Segment:
+class Segment:
     """What runs until the next decision: reference rows 0..n (n + 1 ticks)."""
 
     policy: int
@@ -116,6 +116,19 @@ class _Segment:
     balance: bool = False
     waiting: bool = False
     k: int = 0
+
+    def command(self, law: TrackingLaw, x: FloatArray) -> tuple[FloatArray, float]:
+        """The law's torque at tick ``k`` for the measured state ``x``, and the value of
+        the monitored outer domain (0 without one; > 1: outside)."""
+        k = self.k
+        if self.centers is not None and self.shapes is not None:
+            return law(x, self.ref_states[k], self.ref_inputs[k], self.centers[k], self.shapes[k])
+        return law(x, self.ref_states[k], self.ref_inputs[k], _NO_CENTER, _NO_SHAPE)
+
+
+def fallen(x: FloatArray, fall_lean: float) -> bool:
+    """Whether the lean in either plane is beyond ``fall_lean`` (rad) or not finite."""
+    return not (abs(x[2]) <= fall_lean and abs(x[3]) <= fall_lean)
 
 
 class Supervisor:
@@ -168,7 +181,7 @@ class Supervisor:
         self.stalled = 0
         self.offset = 0
         self.status = TaskStatus.RUNNING
-        self.segment: _Segment | None = None
+        self.segment: Segment | None = None
         self.balancing = False
         self.hold_xy = np.zeros(2)
         self.waited = 0.0
@@ -229,18 +242,11 @@ class Supervisor:
             k = seg.k
             if self.background and self._land(seg, k):
                 continue
-            lean_ok = abs(x[2]) <= self.fall_lean and abs(x[3]) <= self.fall_lean
-            if not lean_ok:  # also a state that is no longer finite
+            if fallen(x, self.fall_lean):
                 self.segment = None
                 self._finish(TaskStatus.FELL)
                 break
-            if seg.centers is not None:
-                assert seg.shapes is not None
-                tau, val = self.law(
-                    x, seg.ref_states[k], seg.ref_inputs[k], seg.centers[k], seg.shapes[k]
-                )
-            else:
-                tau, val = self.law(x, seg.ref_states[k], seg.ref_inputs[k], _NO_CENTER, _NO_SHAPE)
+            tau, val = seg.command(self.law, x)
             exited = val > 1.0
             if exited or k == seg.n:
                 self.segment = None
@@ -351,7 +357,7 @@ class Supervisor:
         if dyn is not None and dyn.ticks_to_next(self.t, dt) < n_seg:
             n_seg, split, truncated = dyn.ticks_to_next(self.t, dt), True, False
         part = slice(self.offset, self.offset + n_seg + 1)
-        self.segment = _Segment(
+        self.segment = Segment(
             policy=current,
             ref_states=ref_states[part],
             ref_inputs=ref_inputs[part],
@@ -368,7 +374,7 @@ class Supervisor:
         f = self.current if frm is None else frm
         self.events.append(SwitchEvent(self.t, f, to, reason, self.ticks))
 
-    def _end_segment(self, seg: _Segment, last: int, exited: bool, looked: bool = False) -> None:
+    def _end_segment(self, seg: Segment, last: int, exited: bool, looked: bool = False) -> None:
         """The switching rules at the end of a policy segment of ``last`` ticks
         (``looked``: it ended because a look at the moving obstacles landed)."""
         hc, options, dyn = self.hc, self.options, self.dyn
@@ -485,7 +491,7 @@ class Supervisor:
             xy, tree = p[:2].copy(), self.tree
             self.look_job = self._job(lambda: dyn.look(t, xy, tree))
 
-    def _coast(self, x: FloatArray, n: int) -> _Segment:
+    def _coast(self, x: FloatArray, n: int) -> Segment:
         """A waiting segment of ``n`` ticks: upright at the measured velocity from the
         measured position (the reference the robot follows while a capture is
         computed), with the friction the plan expects at that ball rate."""
@@ -499,7 +505,7 @@ class Supervisor:
         states = state_from_position(pos[:, :4], self.r)
         fr = self.law.friction
         ff = np.array([_kernels.friction(fr, float(w)) for w in states[0, 4:6]])
-        return _Segment(
+        return Segment(
             policy=self.current,
             ref_states=states,
             ref_inputs=np.tile(ff, (n + 1, 1)),
@@ -526,12 +532,12 @@ class Supervisor:
         self.capture_job = self._job(lambda: hc.capture_plan(x_at, tree))
         self.segment = wait
 
-    def _wait_more(self, seg: _Segment) -> None:
+    def _wait_more(self, seg: Segment) -> None:
         """The wait ran out before the capture landed: balancing mode."""
         self.capture_job = None
         self._balance(position_state(self.x, self.r))
 
-    def _land(self, seg: _Segment, k: int) -> bool:
+    def _land(self, seg: Segment, k: int) -> bool:
         """Adopt what the background finished by this tick; True when that ended the
         running segment (something else starts at this tick)."""
         dyn = self.dyn
@@ -572,7 +578,7 @@ class Supervisor:
         return False
 
     def _next_policy(
-        self, seg: _Segment, p: FloatArray, exited: bool
+        self, seg: Segment, p: FloatArray, exited: bool
     ) -> tuple[EventReason, int] | None:
         """(reason, next row or −1) after a segment, or None when the task ended."""
         hc, options = self.hc, self.options
@@ -650,7 +656,7 @@ class Supervisor:
         x_ref = state_from_position(np.r_[self.hold_xy, 0.0, 0.0], self.r)
         ref_pos = np.zeros((n + 1, 6))
         ref_pos[:, :2] = self.hold_xy
-        self.segment = _Segment(
+        self.segment = Segment(
             policy=-1,
             ref_states=np.tile(x_ref, (n + 1, 1)),
             ref_inputs=np.zeros((n + 1, 2)),
@@ -661,7 +667,7 @@ class Supervisor:
             balance=True,
         )
 
-    def _end_chunk(self, seg: _Segment, n: int) -> None:
+    def _end_chunk(self, seg: Segment, n: int) -> None:
         dyn, options = self.dyn, self.options
         self.waited += n * self.dt
         if dyn is not None and np.any(dyn.blocked):
