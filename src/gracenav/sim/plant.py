@@ -118,7 +118,46 @@ class _Sensor:
         return y
 
 
-class Model3DPlant:
+class _SimulatedPlant:
+    """What the shipped plants share: parameters and substeps checked, the sensor, and
+    the forces and drag held over the next periods (:class:`DisturbablePlant`)."""
+
+    def __init__(
+        self,
+        params: BallbotParams | None,
+        substeps: int,
+        position_noise_std: float,
+        velocity_noise_std: float,
+        seed: int,
+    ) -> None:
+        self.params = params if params is not None else BallbotParams()
+        if not (isinstance(substeps, int) and substeps >= 1):
+            raise ConfigError(f"substeps must be a positive integer, got {substeps!r}")
+        self.substeps = substeps
+        self.ball_radius = float(self.params.ball_radius)
+        self._limit = float(self.params.torque_limit)
+        self._sensor = _Sensor(self.ball_radius, position_noise_std, velocity_noise_std, seed)
+        self._force = np.zeros(3)
+        self._drag = np.zeros(3)
+        self._damping = 0.0
+
+    def state(self) -> FloatArray:  # pragma: no cover - each plant has its own
+        raise NotImplementedError
+
+    def measure(self) -> FloatArray:
+        return self._sensor.measure(self.state())
+
+    def _clear_forces(self) -> None:
+        self._force[:] = 0.0
+        self._drag[:] = 0.0
+
+    def set_force(self, force: FloatArray, drag: FloatArray, damping: float) -> None:
+        self._force[:2] = force
+        self._drag[:] = drag
+        self._damping = float(damping)
+
+
+class Model3DPlant(_SimulatedPlant):
     """The compiled 3D model (:class:`gracenav.model.Ballbot3D`) as a plant: fixed-step
     RK4, saturation at its own torque limit, the simulated disturbances, and optional
     white noise on the measured ball position and velocity.
@@ -144,38 +183,27 @@ class Model3DPlant:
         velocity_noise_std: float = 0.0,
         seed: int = 0,
     ) -> None:
+        from gracenav import _kernels
         from gracenav.model.ballbot3d import Ballbot3D
         from gracenav.model.friction import friction_constants
 
-        self.params = params if params is not None else BallbotParams()
-        if not (isinstance(substeps, int) and substeps >= 1):
-            raise ConfigError(f"substeps must be a positive integer, got {substeps!r}")
-        self.substeps = substeps
-        self.ball_radius = float(self.params.ball_radius)
+        super().__init__(params, substeps, position_noise_std, velocity_noise_std, seed)
         self._c = Ballbot3D(self.params).constants()
-        p = self.params
-        self._fr = friction_constants(p)
-        self._limit = float(p.torque_limit)
-        self._sensor = _Sensor(self.ball_radius, position_noise_std, velocity_noise_std, seed)
+        self._fr = friction_constants(self.params)
         self._x = np.zeros(8)
-        self._force = np.zeros(3)
-        self._drag = np.zeros(3)
-        self._damping = 0.0
-        from gracenav import _kernels
 
         self._advance = _kernels.plant_advance
         self._kick = _kernels.plant_kick
 
     def reset(self, x0: ArrayLike) -> None:
         self._x = _check(x0)
-        self._force[:] = 0.0
-        self._drag[:] = 0.0
+        self._clear_forces()
 
     def state(self) -> FloatArray:
         return self._x.copy()
 
     def measure(self) -> FloatArray:
-        return self._sensor.measure(self._x)
+        return self._sensor.measure(self._x)  # (the sensor copies: no copy of the state)
 
     def advance(self, torque: FloatArray, dt: float) -> None:
         self._advance(
@@ -200,13 +228,8 @@ class Model3DPlant:
     def jump(self, delta: FloatArray) -> None:
         self._x += np.asarray(delta, dtype=float)
 
-    def set_force(self, force: FloatArray, drag: FloatArray, damping: float) -> None:
-        self._force[:2] = force
-        self._drag[:] = drag
-        self._damping = float(damping)
 
-
-class MujocoPlant:
+class MujocoPlant(_SimulatedPlant):
     """The MuJoCo ballbot (:class:`gracenav.sim.mujoco.MujocoBallbot`, yaw locked)
     as a plant, with the same disturbances and measurement noise as
     :class:`Model3DPlant`; a push is a force of impulse/dt over the next period.
@@ -235,32 +258,19 @@ class MujocoPlant:
         from gracenav.model.ballbot3d import Ballbot3D
         from gracenav.sim.mujoco import MujocoBallbot
 
-        self.params = params if params is not None else BallbotParams()
-        if not (isinstance(substeps, int) and substeps >= 1):
-            raise ConfigError(f"substeps must be a positive integer, got {substeps!r}")
-        self.substeps = substeps
+        super().__init__(params, substeps, position_noise_std, velocity_noise_std, seed)
         self.dt = float(dt)
-        self.ball_radius = float(self.params.ball_radius)
         self._sim = MujocoBallbot(self.params, timestep=self.dt / substeps)
         self._model = Ballbot3D(self.params)
-        self._limit = float(self.params.torque_limit)
-        self._sensor = _Sensor(self.ball_radius, position_noise_std, velocity_noise_std, seed)
-        self._force = np.zeros(3)
-        self._drag = np.zeros(3)
-        self._damping = 0.0
         self._impulse = np.zeros(3)
 
     def reset(self, x0: ArrayLike) -> None:
         self._sim.set_state(_check(x0))
-        self._force[:] = 0.0
-        self._drag[:] = 0.0
+        self._clear_forces()
         self._impulse[:] = 0.0
 
     def state(self) -> FloatArray:
         return np.asarray(self._sim.get_state(), dtype=float)
-
-    def measure(self) -> FloatArray:
-        return self._sensor.measure(self.state())
 
     def advance(self, torque: FloatArray, dt: float) -> None:
         if abs(dt - self.dt) > 1e-12:
@@ -282,11 +292,6 @@ class MujocoPlant:
 
     def jump(self, delta: FloatArray) -> None:
         self._sim.set_state(self.state() + np.asarray(delta, dtype=float))
-
-    def set_force(self, force: FloatArray, drag: FloatArray, damping: float) -> None:
-        self._force[:2] = force
-        self._drag[:] = drag
-        self._damping = float(damping)
 
 
 def make_plant(
