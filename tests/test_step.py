@@ -216,7 +216,8 @@ def test_modelled_latency_captures_land_later_and_still_catch(room) -> None:  # 
 
 def test_threaded_planning_never_waits_in_step(room, monkeypatch) -> None:  # type: ignore[no-untyped-def]
     """A capture computed on the worker thread while step keeps returning commands:
-    the worker is held until 200 ticks after the push; no step waits for it."""
+    the worker is held until 200 ticks after the push (released by the loop itself), so
+    a step that waited for it would stall for the worker's 30 s timeout."""
     import threading
     import time
 
@@ -254,7 +255,10 @@ def test_threaded_planning_never_waits_in_step(room, monkeypatch) -> None:  # ty
     finally:
         release.set()
         hc.close()
-    assert slowest < 0.05  # the worker was held the whole time: nothing waited for it
+    # The worker was held until 200 ticks after the push: a step that waited for it would
+    # have waited the worker's whole 30 s (it is released only by later steps). A hang
+    # guard, not a timing: how fast a step is belongs in bench/bench_step.py.
+    assert slowest < 10.0
     assert cmd.done and cmd.status is TaskStatus.GOAL_REACHED
     log = hc.log()
     assert any(e.reason is EventReason.CAPTURE for e in log.events) or any(
