@@ -29,7 +29,7 @@ from concurrent.futures import Executor, ThreadPoolExecutor
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from gracenav.control import TrackingLaw
+from gracenav.control import CONTROL_RATE, TrackingLaw
 from gracenav.errors import ConfigError, PlanningError
 from gracenav.execution.capture import CapturePlan, TerminalPolicy, capture_for
 from gracenav.execution.episode import Episode, ExecutionLog, drive
@@ -49,7 +49,7 @@ from gracenav.planning.graph import PreparesGraph
 from gracenav.planning.repair import HOLD_MARGIN
 from gracenav.policies import PrimitiveKind, flat_position_state
 from gracenav.sim import Disturbance, position_state
-from gracenav.sim.plant import CONTROL_RATE, Plant
+from gracenav.sim.plant import Plant
 from gracenav.world.moving import MovingObstacle
 
 __all__ = ["HybridController"]

@@ -18,12 +18,10 @@ from typing import Literal, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from gracenav.control import CONTROL_RATE
 from gracenav.errors import ConfigError
 from gracenav.params import BallbotParams
 
 __all__ = [
-    "CONTROL_RATE",
     "DisturbablePlant",
     "Model3DPlant",
     "MujocoPlant",
@@ -253,13 +251,15 @@ class MujocoPlant(_SimulatedPlant):
         position_noise_std: float = 0.0,
         velocity_noise_std: float = 0.0,
         seed: int = 0,
-        dt: float = 1.0 / CONTROL_RATE,
+        dt: float | None = None,
     ) -> None:
         from gracenav.model.ballbot3d import Ballbot3D
         from gracenav.sim.mujoco import MujocoBallbot
 
         super().__init__(params, substeps, position_noise_std, velocity_noise_std, seed)
-        self.dt = float(dt)
+        from gracenav.control import CONTROL_RATE
+
+        self.dt = float(dt) if dt is not None else 1.0 / CONTROL_RATE
         self._sim = MujocoBallbot(self.params, timestep=self.dt / substeps)
         self._model = Ballbot3D(self.params)
         self._impulse = np.zeros(3)
