@@ -14,7 +14,13 @@ from gracenav import ConfigError
 from gracenav.control import ControllerGains
 from gracenav.library import PolicyLibrary, build_library
 from gracenav.palette import Palette
-from gracenav.planning.graph import PreparesGraph, build_graph, gains_equal, gracefully_prepares
+from gracenav.planning.graph import (
+    FINE_COST_FACTOR,
+    PreparesGraph,
+    build_graph,
+    gains_equal,
+    gracefully_prepares,
+)
 from gracenav.policies import (
     MotionPolicy,
     PrimitiveKind,
@@ -201,11 +207,14 @@ def test_csr_shapes_and_costs() -> None:
     assert t.has_sorted_indices
     src, dst = graph.edges()
     assert np.all(src != dst)
-    np.testing.assert_allclose(t.data, lib.durations[src], rtol=0, atol=0)
-    np.testing.assert_allclose(d.data, lib.path_lengths[src], rtol=0, atol=0)
+    # A fine copy costs FINE_COST_FACTOR times its duration or length, exactly.
+    factor = np.where(lib.is_fine(np.arange(n)), FINE_COST_FACTOR, 1.0)
+    assert 0 < np.count_nonzero(factor > 1) < n
+    np.testing.assert_allclose(t.data, (factor * lib.durations)[src], rtol=0, atol=0)
+    np.testing.assert_allclose(d.data, (factor * lib.path_lengths)[src], rtol=0, atol=0)
     np.testing.assert_array_equal(graph.time_weights, t.data)
-    np.testing.assert_array_equal(graph.node_cost("time"), lib.durations)
-    np.testing.assert_array_equal(graph.node_cost("distance"), lib.path_lengths)
+    np.testing.assert_array_equal(graph.node_cost("time"), factor * lib.durations)
+    np.testing.assert_array_equal(graph.node_cost("distance"), factor * lib.path_lengths)
     # Costs by construction: a 1 s cruise trim of 0.5 m.
     cruise = np.flatnonzero(lib.palette_index[src] == 1)
     np.testing.assert_allclose(t.data[cruise], 1.0, atol=1e-12)

@@ -84,6 +84,8 @@ def test_palette_has_40_verified_primitives_and_larger_variants(palette) -> None
     for pol in palette.policies:
         if not pol.label or pol.capture:  # capture regulators: tests/test_capture.py
             continue
+        if pol.name.endswith("]") and "[x" in pol.name:  # fine copies: test_fine_policies.py
+            continue
         own = by_name[pol.primitive.name]
         assert pol.primitive is own.primitive  # variants share the primitive
         assert pol.goal_radii == own.goal_radii  # and G: graceful connections are kept

@@ -218,6 +218,10 @@ class HybridController:
         if dyn is not None and np.any(dyn.blocked):
             # The way is blocked: any free rest trim will do to wait for it to clear.
             passes.append(all_rest[~dyn.blocked[all_rest]])
+        # The fine copies' rest trims (near obstacles, narrow D') only when no other
+        # will do: balancing mode is not verified, and waits longer than a rest trim.
+        fine = self.library.is_fine
+        passes = [r[~fine(r)] for r in passes] + [r[fine(r)] for r in passes]
         wm = self.library.world_map
         # A robot already nearer than that to an obstacle may not get any nearer.
         need = min(

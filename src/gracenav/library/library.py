@@ -153,6 +153,14 @@ class PolicyLibrary:
             start_xy=np.array(self.start_xy[i]),
         )
 
+    def is_fine(self, rows: ArrayLike) -> BoolArray:
+        """Whether each library row of ``rows`` is a fine copy of a palette policy
+        (:attr:`gracenav.policies.VerificationOptions.fine_scales`), shape of ``rows``."""
+        r = np.asarray(rows, dtype=np.int64)
+        t = self.palette_index[r] * ORIENTATIONS + self.orientation[r]
+        out: BoolArray = self.types.fine_factor[t] < 1.0
+        return out
+
     def trim_indices(self, kind: PrimitiveKind | None = None) -> IntArray:
         """Rows whose primitive is a trim (or of trim ``kind``: REST or CRUISE), shape (n,).
 

@@ -114,8 +114,12 @@ class PolicyTypes:
         Capture regulators (:class:`gracenav.policies.RegulatorOptions`).
     scale_group : ndarray of int, shape (T,)
         Types of one primitive at one orientation share a group: the policy sized by
-        bisection and its larger-domain variants. Instantiation keeps, per group and
-        point, only the largest start domain whose swept D' fits.
+        bisection, its larger-domain variants and its fine copies. Instantiation keeps,
+        per group and point, only the largest start domain whose swept D' fits, so a
+        fine copy is placed only where the unscaled policy does not fit.
+    fine_factor : ndarray, shape (T,)
+        λ of a fine copy (:attr:`gracenav.policies.VerificationOptions.fine_scales`): its
+        G over the palette's; 1 for every other policy.
     """
 
     palette_index: IntArray
@@ -139,6 +143,7 @@ class PolicyTypes:
     is_trim: BoolArray
     is_capture: BoolArray
     scale_group: IntArray
+    fine_factor: FloatArray
 
     def __len__(self) -> int:
         return int(self.palette_index.shape[0])
@@ -167,6 +172,10 @@ class PolicyTypes:
         primitive_id = np.array(
             [first_of.setdefault(p.primitive.name, len(first_of)) for p in pols], dtype=np.int64
         )
+        # λ of the fine copies: their G over the palette's (every other policy has it).
+        goal_extent = palette.options.goal_position_extent
+        fine = np.array([min(1.0, p.goal_radii.position / goal_extent) for p in pols], dtype=float)
+        fine = np.where(np.isclose(fine, 1.0, rtol=1e-9, atol=0.0), 1.0, fine)
 
         def turn(v: FloatArray) -> FloatArray:
             """(P, 2) vectors at the 4 orientations, type-major: shape (4 P, 2)."""
@@ -201,6 +210,7 @@ class PolicyTypes:
             "is_capture": per_type(np.array([p.capture for p in pols], dtype=bool)),
             "scale_group": ORIENTATIONS * per_type(primitive_id)
             + np.tile(np.arange(ORIENTATIONS, dtype=np.int64), n),
+            "fine_factor": per_type(fine),
         }
         return cls(**{k: _readonly(v) for k, v in arrays.items()})
 

@@ -33,14 +33,15 @@ __all__ = ["build_palette"]
 def _size_one(
     args: tuple[SampledPrimitive, ControllerGains, VerificationOptions, DomainShape],
 ) -> tuple[MotionPolicy, ...]:
-    """The policy of one primitive sized by bisection, then its verified larger variants."""
-    from gracenav.policies import scaled_variants, size_policy
+    """The policy of one primitive sized by bisection, then its verified larger variants
+    and its fine copies."""
+    from gracenav.policies import fine_variants, scaled_variants, size_policy
 
     prim, gains, options, shape = args
     base = size_policy(prim, gains, options, shape=shape)
     if base.report is None or not base.report.passed:
         return (base,)
-    return (base, *scaled_variants(base, options))
+    return (base, *scaled_variants(base, options), *fine_variants(base, options))
 
 
 def _regulators(
@@ -138,7 +139,8 @@ def build_palette(
     Each primitive's policy is sized by bisection on S/G up to ``options.max_scale``;
     then the sizes of ``options.scale_ladder`` are verified in turn
     (:func:`gracenav.policies.scaled_variants`) and every one that passes is kept as a
-    labelled variant sharing the primitive (instantiation places the largest that fits).
+    labelled variant sharing the primitive (instantiation places the largest that fits);
+    last its fine copies (``options.fine_scales``, :func:`gracenav.policies.fine_variants`).
 
     Parameters
     ----------

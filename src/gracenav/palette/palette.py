@@ -93,7 +93,8 @@ class Palette:
     policies : tuple of MotionPolicy
         The verified policies (first-quadrant primitives; instantiation rotates them):
         for each primitive the policy sized by bisection, followed by its larger-domain
-        variants (scaled domains, named ``<primitive>[S=<s>G]``), which share its
+        variants (scaled domains, named ``<primitive>[S=<s>G]``) and its fine copies
+        (every domain scaled down, named ``<primitive>[x<λ>]``), which share its
         primitive.
     rejected : tuple of (str, VerificationReport)
         Primitives whose policy failed verification, with the failing report.
@@ -268,6 +269,8 @@ class Palette:
             )
             opts = dict(header["options"])
             opts["scale_ladder"] = tuple(opts["scale_ladder"])
+            # Palettes written before fine copies existed have none.
+            opts.setdefault("fine_scales", ())
             if opts.get("regulator") is not None:
                 opts["regulator"] = RegulatorOptions.from_dict(opts["regulator"])
             if opts.get("braking") is not None:

@@ -69,6 +69,8 @@ from gracenav.policies.primitive import (
     rotate_pairs_by,
 )
 from gracenav.policies.regulators import (
+    fine_label,
+    fine_variants,
     regulator_label,
     regulator_policies,
     scaled_variants,
@@ -100,6 +102,8 @@ __all__ = [
     "capture_point",
     "combined_report",
     "domain_shape",
+    "fine_label",
+    "fine_variants",
     "flat_position_state",
     "instantiated_reference",
     "push_lean_table",

@@ -502,6 +502,15 @@ class VerificationOptions:
         policy is verified again after its bisection (:func:`scaled_variants`).
         Instantiation places the largest verified size whose swept D' fits the map:
         large domains in open space, the bisected size near walls.
+    fine_scales : tuple of float
+        Factors λ in (0, 1), descending, of the *fine* copies of every lattice policy
+        sized by bisection: S, G and D'(t) all λ times the policy's, the same reference
+        and control law, verified again at both placements (:func:`fine_variants`). A
+        copy's swept D' is λ times as wide, so it fits passages and nears walls the
+        policy itself does not; since its S is λ times 2 G, a policy of one level
+        prepares one of the next level down (G ⊂ λ · 2 G for λ >= 1/2) and every level
+        prepares the unscaled policies (λ G ⊂ S). Instantiation places them only where
+        the unscaled policy may not fit.
     regulator : RegulatorOptions or None
         The palette's capture regulators (None: none).
     braking : BrakingOptions or None
@@ -521,6 +530,7 @@ class VerificationOptions:
     bisection_steps: int = 6
     shape_horizon: float = 1.0
     scale_ladder: tuple[float, ...] = (3.0, 4.0, 6.0, 8.0)
+    fine_scales: tuple[float, ...] = (0.5, 0.25)
     regulator: RegulatorOptions | None = field(default_factory=RegulatorOptions)
     braking: BrakingOptions | None = None
     catch: CatchOptions | None = field(default_factory=CatchOptions)
@@ -538,6 +548,10 @@ class VerificationOptions:
             raise ConfigError(
                 f"scale_ladder must ascend from above max_scale {self.max_scale:g}, got {ladder}"
             )
+        fine = tuple(float(v) for v in self.fine_scales)
+        object.__setattr__(self, "fine_scales", fine)
+        if any(not 0 < v < 1 for v in fine) or any(not b < a for a, b in itertools.pairwise(fine)):
+            raise ConfigError(f"fine_scales must descend within (0, 1), got {fine}")
         if self.boundary_points < 8:
             raise ConfigError("boundary_points must be >= 8 (the axis extremes)")
         if self.outer_position_factor < 1 or self.outer_velocity_factor < 1:

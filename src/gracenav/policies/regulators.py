@@ -16,7 +16,14 @@ from gracenav.policies.policy import MotionPolicy
 from gracenav.policies.primitive import SampledPrimitive
 from gracenav.policies.verification import verify_placements
 
-__all__ = ["regulator_label", "regulator_policies", "scaled_variants", "variant_label"]
+__all__ = [
+    "fine_label",
+    "fine_variants",
+    "regulator_label",
+    "regulator_policies",
+    "scaled_variants",
+    "variant_label",
+]
 
 
 def regulator_label(name: str, position_extent: float) -> str:
@@ -85,6 +92,51 @@ def regulator_policies(
 def variant_label(name: str, scale: float) -> str:
     """Name of the variant of policy ``name`` whose start domain is ``scale`` × G."""
     return f"{name}[S={scale:g}G]"
+
+
+def fine_label(name: str, factor: float) -> str:
+    """Name of the fine copy of policy ``name`` whose domains are ``factor`` times its
+    own, e.g. ``"cruise_x[x0.5]"``."""
+    return f"{name}[x{factor:g}]"
+
+
+def fine_variants(
+    policy: MotionPolicy,
+    options: VerificationOptions | None = None,
+    *,
+    progress: Callable[[], None] | None = None,
+) -> tuple[MotionPolicy, ...]:
+    """Fine copies of a verified policy: S, G and D'(t) scaled by each factor of
+    ``options.fine_scales``, the reference and control law unchanged.
+
+    Each copy is verified again at both placements from the surface of its own S,
+    like the policy itself (the closed loop is not linear: the copy is not verified
+    by scaling). The factors are tried in order and stop at the first that fails, so
+    that each level hands over to the next (see
+    :attr:`~gracenav.policies.VerificationOptions.fine_scales`).
+
+    Returns
+    -------
+    tuple of MotionPolicy
+        The verified copies, largest first, labelled by :func:`fine_label`.
+    """
+    options = options if options is not None else VerificationOptions()
+    out: list[MotionPolicy] = []
+    for factor in options.fine_scales:
+        cand = replace(
+            policy,
+            start_radii=policy.start_radii.scaled(factor),
+            goal_radii=policy.goal_radii.scaled(factor),
+            report=None,
+            label=fine_label(policy.primitive.name, factor),
+        )
+        report = verify_placements(cand, options)
+        if progress is not None:
+            progress()
+        if not report.passed:
+            break
+        out.append(replace(cand, report=report))
+    return tuple(out)
 
 
 def scaled_variants(
