@@ -11,7 +11,7 @@ only the search; an adjacency in any other form is converted on every call, O(N 
 
 The search is a compiled (numba) Dijkstra that uses one property of these graphs: an
 edge costs the execution of a policy, and a palette has few distinct durations and path
-lengths (18 and 39 for the 139-policy palette) however large the map. With one FIFO
+lengths (33 and 77 for the 219-policy palette) however large the map. With one FIFO
 queue per distinct edge cost, each queue receives its keys in increasing order (a key is
 the settled cost-to-go, which only grows, plus the queue's constant cost), so a push is
 an append and a pop takes the smallest of the queue heads, kept in a binary heap of at
