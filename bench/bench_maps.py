@@ -4,9 +4,13 @@ forests, warehouses and offices.
 Each map class draws seeded tasks, each checked possible for the footprint first
 (:func:`gracenav.world.footprint_connected`):
 
-* ``forest``: a 4.5 m x 16 m field of 0.15 m posts (``forest_map``, density 0.06),
-  start (1, 2.25), goal (15, 2.25), at rest; fields the footprint cannot cross are
-  drawn again;
+* ``forest``: a 4.5 m x 16 m field of 0.15 m posts on a 0.15 m grid (``forest_map``,
+  density 0.012), start (3, 2.25) 3 m in, goal (13, 2.25) 10 m ahead, at rest; a field
+  is kept when its widest route leaves the footprint 0.175 m on each side (a disc of
+  radius 0.375 m crosses it, :func:`gracenav.world.footprint_connected`), else drawn
+  again;
+* ``forest_tight``: the same fields kept when the widest route leaves 0.1 m on each
+  side;
 * ``warehouse``: a 30 m x 50 m warehouse at 3 cm (``warehouse_map``), start and goal
   at rest with clearance >= footprint + 0.3 m, >= 5 m apart;
 * ``office``: a 20 m office at 5 cm with 0.8 m doors (``office_map``), tasks drawn as
@@ -19,7 +23,7 @@ planner: tasks, goal reached, refused (with the reasons, shortened), contacts, t
 median time to goal and the median wall time per task.
 
     OPENBLAS_NUM_THREADS=1 python bench/bench_maps.py [--tasks 8] [--seed 0]
-        [--classes forest warehouse office] [--max-halvings N]
+        [--classes forest forest_tight warehouse office] [--max-halvings N]
 """
 
 from __future__ import annotations
@@ -50,6 +54,9 @@ from gracenav.world import (
 )
 
 FOOT = 0.2
+#: Room a forest's widest route leaves beside the footprint on each side (m).
+FOREST_SPARE = {"forest": 0.175, "forest_tight": 0.1}
+CLASSES = ("forest", "forest_tight", "warehouse", "office")
 
 
 def _draw_pair(world: WorldMap, rng: np.random.Generator) -> tuple[Any, Any] | None:
@@ -71,12 +78,12 @@ def tasks(kind: str, n: int, seed: int) -> list[tuple[WorldMap, Any, Any]]:
     rng = np.random.default_rng(seed)
     out: list[tuple[WorldMap, Any, Any]] = []
     k = 0
-    while len(out) < n and k < 20 * n:
+    while len(out) < n and k < 50 * n:
         k += 1
-        if kind == "forest":
-            world = forest_map(seed=seed * 1000 + k)
-            start, goal = (1.0, 2.25), (15.0, 2.25)
-            if footprint_connected(world, start, goal, FOOT):
+        if kind in FOREST_SPARE:
+            world = forest_map(density=0.012, seed=seed * 1000 + k)
+            start, goal = (3.0, 2.25), (13.0, 2.25)
+            if footprint_connected(world, start, goal, FOOT + FOREST_SPARE[kind]):
                 out.append((world, start, goal))
             continue
         if kind == "warehouse":
@@ -132,8 +139,8 @@ def main() -> None:
     ap.add_argument(
         "--classes",
         nargs="+",
-        default=["forest", "warehouse", "office"],
-        choices=("forest", "warehouse", "office"),
+        default=list(CLASSES),
+        choices=CLASSES,
     )
     ap.add_argument(
         "--max-halvings",
