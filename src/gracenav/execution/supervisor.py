@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gracenav.control.law import TrackingLaw
-from gracenav.execution.capture import CapturePlan, PlacedPolicy
+from gracenav.execution.capture import CapturePlan, PlacedPolicy, ShiftTerminal
 from gracenav.execution.episode import ExecutionLog
 from gracenav.execution.jobs import Job
 from gracenav.execution.obstacles import ObstacleTracker
@@ -42,7 +42,7 @@ if TYPE_CHECKING:
     from concurrent.futures import ThreadPoolExecutor
 
     from gracenav.control import ControllerGains as _Gains
-    from gracenav.execution.capture import TerminalPolicy
+    from gracenav.execution.capture import Terminal
     from gracenav.library import PolicyLibrary
     from gracenav.params import BallbotParams
     from gracenav.planning import LazyPolicyTree, PolicyTree
@@ -144,7 +144,7 @@ class Supervisor:
         options: ExecutionOptions,
         *,
         sequence: list[int],
-        terminals: list[TerminalPolicy | None],
+        terminals: list[Terminal | None],
         goal_states: list[FloatArray],
         tree: PolicyTree | LazyPolicyTree,
         current: int,
@@ -167,6 +167,8 @@ class Supervisor:
         self.holding = holding
         self.loops = loops
         self.k_goal = 0
+        #: The stage of a shift terminal running (:attr:`ShiftTerminal.stages`).
+        self.term_stage = 0
         self.captured: list[PlacedPolicy] = []
         self.capture_plans: list[tuple[float, CapturePlan]] = []
         self.capture_row = -1
@@ -318,7 +320,12 @@ class Supervisor:
         term = self.terminals[self.k_goal]
         placed: PlacedPolicy | None = None
         if current == CAPTURE or (current == TERMINAL and term is not None):
-            placed = self.captured[0] if current == CAPTURE else term
+            if current == CAPTURE:
+                placed = self.captured[0]
+            elif isinstance(term, ShiftTerminal):
+                placed = term.stages[self.term_stage]
+            else:
+                placed = term
             assert placed is not None
             prim = placed.primitive
             is_goal = False
@@ -406,11 +413,7 @@ class Supervisor:
                 blocked_now = (
                     bool(dyn.known)
                     if current == CAPTURE
-                    else dyn.disc_blocked(
-                        term.goal_xy,
-                        float(term.policy.outer_extents(0.0)[0]),
-                        term.policy.duration,
-                    )
+                    else self._terminal_blocked(term)
                     if current == TERMINAL and term is not None
                     else dyn.is_blocked(current)
                     or (self.holding and not dyn.hold_row_clear(current))
@@ -601,6 +604,8 @@ class Supervisor:
                     return EventReason.NOT_IN_GOAL, hc.best_policy(p, self.tree)
                 return EventReason.GRACEFUL, nxt
             return EventReason.NOT_IN_GOAL, hc.best_policy(p, self.tree)
+        if current == TERMINAL and isinstance(term, ShiftTerminal):
+            return self._next_stage(term, p, near_goal)
         if current == TERMINAL and term is not None:
             if near_goal:
                 self.goals_reached.append((self.t, self.k_goal))
@@ -613,8 +618,9 @@ class Supervisor:
         if not inst.goal_domain.contains(p):
             return EventReason.NOT_IN_GOAL, hc.best_policy(p, self.tree)
         if seg.is_goal and term is not None:
-            # Off-lattice goal: the terminal regulator takes over from the rest trim.
-            if term.start_domain.contains(p):
+            # Off-lattice goal: the terminal takes over from the rest trim.
+            if self._terminal_starts(term, p):
+                self.term_stage = 0
                 return EventReason.TERMINAL, TERMINAL
             return EventReason.HOLD_GOAL, current
         if seg.is_goal:
@@ -642,6 +648,54 @@ class Supervisor:
         if nxt < 0 or not hc.library.policy(nxt).start_domain.contains(p):
             return EventReason.NOT_IN_GOAL, hc.best_policy(p, self.tree)
         return EventReason.GRACEFUL, nxt
+
+    # -- the end at a goal off the lattice ------------------------------------------
+    def _terminal_starts(self, term: Terminal, p: FloatArray) -> bool:
+        """Whether the terminal may start now: its S holds ``p`` (and, for shifts, the
+        lean is within the band they were verified from)."""
+        if not term.start_domain.contains(p):
+            return False
+        if isinstance(term, ShiftTerminal):
+            x = self.x
+            return term.accepts_lean(float(np.hypot(*x[2:4])), float(np.hypot(*x[6:8])))
+        return True
+
+    def _next_stage(
+        self, term: ShiftTerminal, p: FloatArray, near_goal: bool
+    ) -> tuple[EventReason, int] | None:
+        """After a stage of a shift terminal: the next shift when its S holds the state
+        (the last one's G does, where the task ended), the goal when the robot is there,
+        the hold while it is not (its S holds the state), else back to the library."""
+        stage = term.stages[self.term_stage]
+        if not stage.goal_domain.contains(p):
+            return EventReason.NOT_IN_GOAL, self.hc.best_policy(p, self.tree)
+        if self.term_stage + 1 < len(term.shifts):
+            self.term_stage += 1
+            return EventReason.GRACEFUL, TERMINAL
+        if near_goal:
+            self.goals_reached.append((self.t, self.k_goal))
+            self._finish(TaskStatus.GOAL_REACHED)
+            return None
+        x = self.x
+        if term.hold.start_domain.contains(p) and term.accepts_lean(
+            float(np.hypot(*x[2:4])), float(np.hypot(*x[6:8]))
+        ):
+            self.term_stage = len(term.shifts)
+            return EventReason.HOLD_GOAL, TERMINAL
+        return EventReason.NOT_IN_GOAL, self.hc.best_policy(p, self.tree)
+
+    def _terminal_blocked(self, term: Terminal) -> bool:
+        """Whether a known moving obstacle's predicted motion meets the terminal's swept
+        D' grown by the footprint and margin (over the terminal's duration)."""
+        dyn = self.dyn
+        assert dyn is not None
+        if isinstance(term, ShiftTerminal):
+            return dyn.sweep_blocked(term.sweep_points, term.sweep_reach, term.duration)
+        return dyn.disc_blocked(
+            term.goal_xy,
+            float(term.policy.outer_extents(0.0)[0]),
+            term.policy.duration,
+        )
 
     # -- balancing mode ------------------------------------------------------------
     def _begin_chunk(self) -> None:
