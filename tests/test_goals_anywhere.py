@@ -1,15 +1,18 @@
-"""Goals at rest anywhere the robot fits and starts at rest near walls: shift
-terminals, and two-shift captures onto a rest trim that reaches the goal."""
+"""Goals at rest anywhere the robot fits, starts at rest near walls, and goals next to a
+parked obstacle: shift terminals, two-shift captures onto a rest trim that reaches the
+goal, other ends of the way while a cart blocks the goal's own, and ``blocked`` when
+no way ever opens."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from gracenav.errors import PlanningError
-from gracenav.execution import CAPTURE, TERMINAL, EventReason, HybridController
+from gracenav.execution import CAPTURE, TERMINAL, EventReason, HybridController, TaskStatus
 from gracenav.execution.capture import ShiftTerminal, TerminalPolicy
 from gracenav.scenarios import parse_scenario, run_scenario
 from gracenav.scenarios.run import prepare_library
@@ -169,3 +172,100 @@ def _inline(path: Path) -> dict:
     doc = yaml.safe_load(path.read_text())
     doc.pop("name", None)
     return doc
+
+
+def _cart(x: float, y: float, **keys: float) -> dict:
+    return {"moving_obstacles": [{"name": "cart", "radius": 0.5, "path": [[x, y]], **keys}]}
+
+
+@pytest.mark.parametrize(
+    ("goal", "cart"),
+    [
+        # Off the lattice: the terminal regulator (D' 0.61 m) is blocked, the rest trim
+        # it starts from is not; the robot used to go back and forth between them.
+        ((3.9, 4.1), (2.82, 4.1)),
+        # On the lattice: the goal's own rest trim (S = 3 G, D' 0.38 m) is blocked.
+        ((4.0, 4.0), (4.0, 2.92)),
+    ],
+)
+def test_a_cart_parked_next_to_the_goal_is_passed_by_another_end_of_the_way(
+    goal: tuple[float, float], cart: tuple[float, float]
+) -> None:
+    """A cart (radius 0.5 m) parked from the start 0.38 m beyond the footprint from the
+    goal: the task ends through a shift terminal clear of it."""
+    assert np.hypot(goal[0] - cart[0], goal[1] - cart[1]) == pytest.approx(0.5 + FOOT + 0.38)
+    scenario = parse_scenario(
+        _task(BOX_ROOM, goal, (1.0, 1.0), **_cart(*cart, appear=0.0)), source="depot.yaml"
+    )
+    result = run_scenario(scenario)
+    run, ep = result.runs[0], result.episodes[0]
+    assert run.reached_goal and run.stop_reason == "goal_reached"
+    assert not run.contact and run.min_clearance_m >= 0.0  # against the cart too
+    assert run.final_error_m is not None and run.final_error_m <= _GRID_HALF_DIAGONAL + 0.005
+    assert run.time_s <= 40.0
+    assert any(e.reason is EventReason.TERMINAL for e in ep.events)
+    assert len(ep.events) <= 15  # no back and forth
+
+
+def _without_shifts(palette):
+    return dataclasses.replace(palette, shifts=())
+
+
+def test_a_way_that_never_opens_ends_blocked(palette) -> None:
+    """With a palette without shifts the terminal regulator is the goal's only end and
+    the parked cart blocks it: the robot waits on the rest trim before it, and the run
+    ends ``blocked`` (it went back and forth and ended ``timeout`` before)."""
+    scenario = parse_scenario(
+        _task(BOX_ROOM, (3.9, 4.1), (1.0, 1.0), **_cart(2.82, 4.1, appear=0.0))
+        | {"simulation": {"max_time": 30}},
+        source="depot.yaml",
+    )
+    result = run_scenario(scenario, palette=_without_shifts(palette))
+    run, ep = result.runs[0], result.episodes[0]
+    assert ep.status is TaskStatus.BLOCKED and run.outcome == "blocked"
+    assert not run.reached_goal and not run.contact and run.min_clearance_m >= 0.0
+    assert run.blocked_s >= 15.0
+    assert ep.events[-1].reason is EventReason.BLOCKED and ep.events[-1].to_policy >= 0
+    assert sum(e.reason is EventReason.TERMINAL for e in ep.events) == 0
+    assert run.final_error_m is not None and 0.1 <= run.final_error_m <= 0.2  # at the trim
+
+
+def test_a_way_that_opens_later_is_taken(palette) -> None:
+    """The same cart leaves at 20 s: the robot resumes and ends with the regulator."""
+    scenario = parse_scenario(
+        _task(BOX_ROOM, (3.9, 4.1), (1.0, 1.0), **_cart(2.82, 4.1, appear=0.0, leave=20.0)),
+        source="depot.yaml",
+    )
+    result = run_scenario(scenario, palette=_without_shifts(palette))
+    run, ep = result.runs[0], result.episodes[0]
+    assert run.reached_goal and not run.contact
+    assert run.final_error_m is not None and run.final_error_m <= 1e-3
+    reasons = [e.reason for e in ep.events]
+    assert EventReason.BLOCKED in reasons and EventReason.RESUMED in reasons
+    assert ep.events[-1].reason is EventReason.TERMINAL and ep.time[-1] > 20.0
+
+
+def test_the_other_end_holds_when_looks_land_later(box_room_library, box_room_graph) -> None:
+    """With looks computed in the background (``planning="modelled"``), a look that
+    lands after the task's end moved is applied to the tree of the new end: the lattice
+    goal next to the parked cart is reached as with instant looks."""
+    from gracenav.execution import ExecutionOptions
+    from gracenav.sim import state_from_position
+    from gracenav.world import MovingObstacle
+    from gracenav.world.moving import moving_clearance
+
+    hc = HybridController(box_room_library, box_room_graph)
+    cart = MovingObstacle(radius=0.5, path=((4.0, 2.92),), appear=0.0)
+    goal = np.array([4.0, 4.0, 0.0, 0.0])
+    options = ExecutionOptions(planning="modelled", planning_latency=0.02, max_time=60.0)
+    ep = hc.run(
+        state_from_position([1.0, 1.0, 0.0, 0.0], hc.radius),
+        [goal],
+        options=options,
+        moving_obstacles=[cart],
+    )
+    assert ep.status is TaskStatus.GOAL_REACHED
+    p = ep.position_state
+    assert np.hypot(*(p[-1, :2] - goal[:2])) <= 0.01
+    assert np.min(moving_clearance([cart], p[:, :2], ep.time)) - FOOT >= 0.0
+    assert np.min(box_room_library.world_map.clearance(p[:, :2])) - FOOT >= 0.0

@@ -43,6 +43,7 @@ if TYPE_CHECKING:
 
     from gracenav.control import ControllerGains as _Gains
     from gracenav.execution.capture import Terminal
+    from gracenav.execution.goals import Goals
     from gracenav.library import PolicyLibrary
     from gracenav.params import BallbotParams
     from gracenav.planning import LazyPolicyTree, PolicyTree
@@ -67,6 +68,10 @@ CAPTURE_WAIT = 1.0
 #: ahead (s) and starts then (later if it lands later): longer than a capture plan
 #: takes on this machine (2-28 ms measured).
 CAPTURE_LEAD = 0.05
+#: When moving obstacles block a goal's own end (its trim or terminal), other ends of
+#: the way to it (:meth:`Goals.alternatives`) are tried with the trees toward at most
+#: this many approach trims.
+RETARGET_TREES = 16
 
 _NO_CENTER = np.zeros((0,))
 _NO_SHAPE = np.zeros((0, 0))
@@ -77,6 +82,7 @@ class Planner(Protocol):
     controller's model, and the planning queries (:class:`HybridController`)."""
 
     library: PolicyLibrary
+    goals: Goals
     gains: _Gains
     params: BallbotParams
     dt: float
@@ -169,6 +175,11 @@ class Supervisor:
         self.k_goal = 0
         #: The stage of a shift terminal running (:attr:`ShiftTerminal.stages`).
         self.term_stage = 0
+        #: Replans logged when the free other ends of the way were last listed, those
+        #: ends, and the trees toward their approach trims (see _retarget).
+        self.retarget_seen = -1
+        self.retarget_free: list[Terminal] = []
+        self.retarget_trees: dict[int, Any] = {}
         self.captured: list[PlacedPolicy] = []
         self.capture_plans: list[tuple[float, CapturePlan]] = []
         self.capture_row = -1
@@ -313,7 +324,7 @@ class Supervisor:
             self._begin_chunk()
             return
         if self.ticks >= self.max_ticks:
-            self._finish(TaskStatus.TIMEOUT)
+            self._finish(TaskStatus.BLOCKED if self.holding else TaskStatus.TIMEOUT)
             return
         hc, dt = self.hc, self.dt
         current = self.current
@@ -404,6 +415,8 @@ class Supervisor:
                 self._look(t, p)
             if self.holding:
                 free_row = hc.best_policy(p, self.tree)
+                if self._end_blocked():  # the way may be free, but not its end
+                    free_row = self._retarget(p)
                 if free_row >= 0:  # the way is free again
                     self._event(free_row, EventReason.RESUMED)
                     self.current, self.offset, self.holding = free_row, 0, False
@@ -422,6 +435,8 @@ class Supervisor:
                     return  # the same policy goes on
                 self.offset = 0
                 nxt = hc.best_policy(p, self.tree)
+                if nxt < 0 and self._end_blocked():
+                    nxt = self._retarget(p)
                 if nxt >= 0:
                     self._event(nxt, EventReason.OBSTACLE)
                     self.current, self.holding = nxt, False
@@ -445,7 +460,13 @@ class Supervisor:
         if self.ticks >= self.max_ticks:
             self._finish(TaskStatus.BLOCKED if self.holding else TaskStatus.TIMEOUT)
             return
-        if row == -1 and dyn is not None and np.any(dyn.blocked):
+        if row == -1 and dyn is not None and (np.any(dyn.blocked) or self._end_blocked()):
+            if self._end_blocked():
+                row = self._retarget(p)
+                if row >= 0:  # another end of the way to the goal is free
+                    self._event(row, EventReason.OBSTACLE)
+                    self.current = row
+                    return
             wait_row = dyn.hold_policy(p)
             if wait_row >= 0:  # obstacles block the way: wait on a free rest trim
                 self._event(wait_row, EventReason.BLOCKED)
@@ -547,7 +568,10 @@ class Supervisor:
         if self.look_job is not None and self.look_job.ready(self.ticks):
             assert dyn is not None
             look, self.look_job = self.look_job.result(), None
+            goal = self.tree.goal
             self.tree = dyn.apply(look)
+            if self.tree.goal != goal:  # the task's end moved while the look was computed
+                self.tree = dyn.retarget(self.hc.tree(goal))
             if not (seg.balance or seg.waiting):
                 # The policy is judged against what the look saw, here.
                 self.segment = None
@@ -619,6 +643,14 @@ class Supervisor:
             return EventReason.NOT_IN_GOAL, hc.best_policy(p, self.tree)
         if seg.is_goal and term is not None:
             # Off-lattice goal: the terminal takes over from the rest trim.
+            if self.dyn is not None and self._end_blocked():
+                # Known obstacles block the terminal: another end of the way, or wait.
+                row = self._retarget(p)
+                term = self.terminals[self.k_goal]
+                if row < 0 or term is None:
+                    return EventReason.OBSTACLE, -1
+                if term.approach != current:
+                    return EventReason.OBSTACLE, row
             if self._terminal_starts(term, p):
                 self.term_stage = 0
                 return EventReason.TERMINAL, TERMINAL
@@ -697,6 +729,70 @@ class Supervisor:
             term.policy.duration,
         )
 
+    def _end_blocked(self) -> bool:
+        """Whether known obstacles block the current goal's own end: its trim policy,
+        or the approach trim or the terminal of a goal off the lattice."""
+        dyn = self.dyn
+        if dyn is None:
+            return False
+        term = self.terminals[self.k_goal]
+        if term is None:
+            return dyn.is_blocked(self.sequence[self.k_goal])
+        return dyn.is_blocked(term.approach) or self._terminal_blocked(term)
+
+    def _retarget(self, p: FloatArray) -> int:
+        """Another end of the way to the goal while known obstacles block its own (a
+        parked cart next to the goal): of the goal's terminals
+        (:meth:`Goals.alternatives`) whose approach trim and swept D' are clear, the one
+        with the least cost-to-go from a policy whose S holds ``p`` plus its duration,
+        on the trees toward at most :data:`RETARGET_TREES` approach trims without the
+        blocked policies (kept until what blocks changes). On success the task ends
+        there instead (the tree, the goal trim and the terminal change) and the row to
+        run is returned; −1 if none is free. Only for the last goal of a point-to-point
+        task, at rest."""
+        dyn, hc = self.dyn, self.hc
+        if dyn is None or self.loops > 1 or self.k_goal + 1 != len(self.sequence):
+            return -1
+        g = self.goal_states[self.k_goal]
+        if np.any(g[2:] != 0.0):
+            return -1
+        if self.retarget_seen != len(dyn.replans):
+            self.retarget_seen = len(dyn.replans)
+            lib = hc.library
+            free = [
+                t
+                for t in hc.goals.alternatives(g)
+                if not dyn.is_blocked(t.approach) and not self._terminal_blocked(t)
+            ]
+            free.sort(key=lambda t: (t.duration, float(lib.durations[t.approach]), t.approach))
+            self.retarget_free = free
+            self.retarget_trees = {}
+        trees = self.retarget_trees
+        rows: dict[int, int] = {}  # the policy to run toward each approach trim
+        best: tuple[float, Terminal, Any, int] | None = None
+        for term in self.retarget_free:
+            a = term.approach
+            if a not in trees:
+                if len(trees) >= RETARGET_TREES:
+                    continue
+                trees[a] = dyn.retarget(hc.tree(a))
+            tree = trees[a]
+            if a not in rows:
+                rows[a] = hc.best_policy(p, tree)
+            row = rows[a]
+            if row < 0:
+                continue
+            cost = float(tree.cost_to_go[row]) + term.duration
+            if best is None or cost < best[0]:
+                best = (cost, term, tree, row)
+        if best is None:
+            return -1
+        _, term, tree, row = best
+        self.sequence[self.k_goal] = term.approach
+        self.terminals[self.k_goal] = term
+        self.tree = tree
+        return row
+
     # -- balancing mode ------------------------------------------------------------
     def _begin_chunk(self) -> None:
         options = self.options
@@ -724,7 +820,7 @@ class Supervisor:
     def _end_chunk(self, seg: Segment, n: int) -> None:
         dyn, options = self.dyn, self.options
         self.waited += n * self.dt
-        if dyn is not None and np.any(dyn.blocked):
+        if dyn is not None and (np.any(dyn.blocked) or self._end_blocked()):
             self.blocked_time += n * self.dt  # waiting for the way to clear
             if options.resume_from_balancing:  # as long as it takes
                 self.limit = max(self.limit, self.waited + options.balance_chunk)
@@ -736,6 +832,8 @@ class Supervisor:
                 self.hold_xy = self.hc.recovery_point(p, self.tree, dyn)
         if options.resume_from_balancing and not self.held:
             nxt = self.hc.best_policy(p, self.tree)
+            if dyn is not None and self._end_blocked():  # the way is free, not its end
+                nxt = self._retarget(p)
             if nxt >= 0:
                 self.recovered = nxt
                 self._end_balancing()
@@ -744,7 +842,7 @@ class Supervisor:
         self.balancing = False
         dyn = self.dyn
         if self.recovered < 0:
-            if dyn is not None and np.any(dyn.blocked):
+            if dyn is not None and (np.any(dyn.blocked) or self._end_blocked()):
                 self._finish(TaskStatus.BLOCKED)
             elif self.waited < self.limit - 1e-9:
                 self._finish(TaskStatus.TIMEOUT)
