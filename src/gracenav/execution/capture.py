@@ -13,6 +13,9 @@ plain ones.
 :class:`Capture` plans, for one library, the catch, shift and rest trim that take a
 state to the goal at least cost, checking each swept D' grown by the footprint
 against the map as instantiation does; :func:`capture_for` keeps one per library.
+The same shifts, run the other way round (from a rest trim's end to a grid point
+next to a goal at rest off the lattice), give goals a verified end where no capture
+regulator fits (:class:`ShiftTerminal`, :meth:`Capture.shift_terminals`).
 """
 
 from __future__ import annotations
@@ -27,7 +30,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from gracenav.library import PolicyLibrary, sweep_samples
-from gracenav.policies import MotionPolicy, PrimitiveKind, SampledPrimitive, rotate_pairs_by
+from gracenav.policies import (
+    CatchOptions,
+    MotionPolicy,
+    PrimitiveKind,
+    SampledPrimitive,
+    rotate_pairs_by,
+)
 from gracenav.policies.catches import PUSHED, SETTLED, STILL, lean_class_of
 from gracenav.policies.domains import EllipsoidalDomain
 from gracenav.policies.placement import instantiated_reference
@@ -37,6 +46,8 @@ __all__ = [
     "Capture",
     "CapturePlan",
     "PlacedPolicy",
+    "ShiftTerminal",
+    "Terminal",
     "TerminalPolicy",
     "capture_for",
 ]
@@ -64,6 +75,9 @@ _CHAIN_TRIES = 48
 _CHAIN_FIRSTS = 4
 #: A way from a grid point onto a rest trim: (shifts' duration, shift indices, rest row).
 _Way = tuple[float, tuple[int, ...], int]
+#: Grid points next to a goal a shift terminal may end on: within this many grid
+#: spacings of the goal (the nearest first).
+_TERMINAL_REACH = 1.0
 
 
 def _remember(
@@ -323,6 +337,8 @@ class Capture:
         }
         self._direct_ways: dict[tuple[int, int, bool], list[_Way]] = {}
         self._chained: dict[tuple[int, int, bool], list[_Way]] = {}
+        self._chained_every: dict[tuple[int, int, bool], list[_Way]] = {}
+        self._arrival_ways: dict[tuple[int, int, bool], list[_Way]] = {}
 
     @property
     def library(self) -> PolicyLibrary:
@@ -342,6 +358,19 @@ class Capture:
     def available(self) -> bool:
         """Whether the palette has catches to place."""
         return bool(self._members)
+
+    @property
+    def shifts_available(self) -> bool:
+        """Whether the palette has plain shifts and a settled catch from rest, which
+        shift terminals need (:meth:`shift_terminals`)."""
+        return bool(np.any(~self._shift_still)) and self._settled_hold() is not None
+
+    @property
+    def shift_end_reach(self) -> float:
+        """Clearance (m) beyond the footprint a plain shift's swept D' needs at its end,
+        where a shift terminal holds the robot."""
+        plain = ~self._shift_still
+        return float(np.max(self._shift_reach[plain, -1])) if np.any(plain) else math.inf
 
     def _clear(self, points: FloatArray, reach: FloatArray) -> BoolArray:
         world = self.world_map
@@ -384,16 +413,23 @@ class Capture:
         """(shifts' duration, shift indices, rest row) of the ways from grid point
         ``cell`` onto a rest trim: those of :meth:`_direct`; from a point where there
         are none (a catch ending too near a wall for a shift toward a rest trim, or in a
-        passage without one), two shifts: a first one with a clear swept D' (a still
-        one too after a ``still`` catch), then a plain one, whose S (``shift_scale``
-        G) holds the first one's G. The first shifts are tried from the one ending
-        with the most clearance, until ``_CHAIN_FIRSTS`` of them have a way on or
-        ``_CHAIN_TRIES`` have been tried."""
+        passage without one), two shifts (:meth:`_chains`)."""
         out = self._direct(cell, still)
         if out:
             return out
+        return self._chains(cell, still)
+
+    def _chains(self, cell: tuple[int, int], still: bool, every: bool = False) -> list[_Way]:
+        """Two-shift ways from grid point ``cell`` onto a rest trim: a first shift with a
+        clear swept D' (a still one too after a ``still`` catch), then a plain one, whose
+        S (``shift_scale`` G) holds the first one's G. The first shifts are tried from
+        the one ending with the most clearance, until ``_CHAIN_FIRSTS`` of them have a
+        way on or ``_CHAIN_TRIES`` have been tried (``every``: all ``_CHAIN_TRIES``,
+        for a state whose nearer ways lead only to rest trims that do not reach the
+        goal)."""
         key = (cell[0], cell[1], still)
-        got = self._chained.get(key)
+        cache = self._chained_every if every else self._chained
+        got = cache.get(key)
         if got is not None:
             return got
         q = self.origin + np.asarray(cell, dtype=float) * self.grid
@@ -411,11 +447,165 @@ class Capture:
                 if row not in best or way[0] < best[row][0]:
                     best[row] = way
             firsts += bool(onward)
-            if firsts >= _CHAIN_FIRSTS:
+            if firsts >= _CHAIN_FIRSTS and not every:
                 break
         chained = sorted(best.values())
-        _remember(self._chained, key, chained)
+        _remember(cache, key, chained)
         return chained
+
+    # -- shifts onto a goal ------------------------------------------------------------
+    def _arrivals(self, cell: tuple[int, int]) -> list[_Way]:
+        """(shift duration, (shift index,), rest row) of every way onto grid point
+        ``cell`` from the end of a library rest trim by one plain shift (its S holds the
+        rest trim's G) with a clear swept D'."""
+        key = (cell[0], cell[1], False)
+        got = self._arrival_ways.get(key)
+        if got is not None:
+            return got
+        out: list[_Way] = []
+        plain = np.flatnonzero(~self._shift_still)
+        starts = np.asarray(cell, dtype=np.int64) - self._shift_cells[plain]
+        found = [self._rest.get((int(i), int(j))) for i, j in starts]
+        sel = np.array([n for n, rows in enumerate(found) if rows is not None], dtype=np.int64)
+        if sel.size:
+            q = self.origin + starts[sel] * self.grid
+            ks = plain[sel]
+            clear = np.all(
+                self._clear(q[:, None, :] + self._shift_path[ks], self._shift_reach[ks]), axis=1
+            )
+            for n in sel[clear]:
+                rows = found[int(n)]
+                assert rows is not None
+                k = int(plain[n])
+                out.extend((float(self._shift_time[k]), (k,), int(row)) for row in rows)
+        out.sort()
+        _remember(self._arrival_ways, key, out)
+        return out
+
+    def _arrival_chains(self, cell: tuple[int, int]) -> list[_Way]:
+        """Two-shift ways onto grid point ``cell`` from the end of a library rest trim:
+        a plain shift onto a grid point from which a last plain shift with a clear
+        swept D' reaches ``cell`` (its S holds the first one's G). The grid points are
+        tried from the one with the most clearance, at most ``_CHAIN_TRIES`` of them."""
+        key = (cell[0], cell[1], True)
+        got = self._arrival_ways.get(key)
+        if got is not None:
+            return got
+        plain = np.flatnonzero(~self._shift_still)
+        starts = np.asarray(cell, dtype=np.int64) - self._shift_cells[plain]
+        q = self.origin + starts * self.grid
+        clear = np.all(
+            self._clear(q[:, None, :] + self._shift_path[plain], self._shift_reach[plain]), axis=1
+        )
+        ks, starts, q = plain[clear], starts[clear], q[clear]
+        room = self.world_map.clearance(q)
+        best: dict[int, _Way] = {}
+        for n in np.argsort(-room, kind="stable")[:_CHAIN_TRIES]:
+            k = int(ks[n])
+            for t1, ks1, row in self._arrivals((int(starts[n, 0]), int(starts[n, 1]))):
+                way = (t1 + float(self._shift_time[k]), (*ks1, k), row)
+                if row not in best or way[0] < best[row][0]:
+                    best[row] = way
+        out = sorted(best.values())
+        _remember(self._arrival_ways, key, out)
+        return out
+
+    def _settled_hold(self) -> MotionPolicy | None:
+        """The palette's settled catch from rest (a rest hold whose S is the palette's
+        G), or None."""
+        for m in self._members:
+            if m.lean_class == SETTLED and m.speed == 0.0 and m.stop == 0.0:
+                return m.policy
+        return None
+
+    def shift_terminals(self, goal: ArrayLike, *, every: bool = False) -> tuple[ShiftTerminal, ...]:
+        """Shift terminals for a goal at rest (x, y, 0, 0), best first (empty if none
+        fits); ``every``: the ways of one and of two shifts alike.
+
+        The grid points within a grid spacing of the goal whose G (the palette's, at
+        rest) contains it are tried, nearest first, until one has ways: plain shifts
+        from the end of a library rest trim (one, else two, as captures hand over in
+        the other direction) whose swept D' grown by the footprint is clear, then the
+        palette's settled catch from rest held at the point (its D' clear too). Each
+        way's containments are checked exactly: the rest trim's G in the first shift's
+        S, each shift's G in the next one's S, the last one's G in the hold's S, and the
+        goal in the hold's G. Ordered by the shifts' duration, then the rest trim's
+        distance from the goal and duration."""
+        g = np.asarray(goal, dtype=float).reshape(4)
+        hold = self._settled_hold()
+        opts = self.options
+        if hold is None or opts is None or not self._shifts:
+            return ()
+        library = self.library
+        base = np.round((g[:2] - self.origin) / self.grid).astype(np.int64)
+        cells = base + _NEIGHBOURS
+        xy = self.origin + cells * self.grid
+        dist = np.hypot(*(xy - g[:2]).T)
+        hold_path, hold_reach = _sweep_of(hold, min(float(library.sweep_step), _SWEEP_STEP))
+        for n in np.argsort(dist, kind="stable"):
+            if dist[n] > _TERMINAL_REACH * self.grid + 1e-12:
+                break
+            cell = (int(cells[n, 0]), int(cells[n, 1]))
+            end = PlacedPolicy(hold, 0.0, xy[n].copy())
+            if not end.goal_domain.contains(g):
+                continue
+            if not np.all(self._clear(xy[n] + hold_path, hold_reach)):
+                continue
+            ways = (
+                self._arrivals(cell) + self._arrival_chains(cell)
+                if every
+                else self._arrivals(cell) or self._arrival_chains(cell)
+            )
+            out = []
+            for t, ks, row in ways:
+                term = self._terminal_of(ks, row, end, (hold_path, hold_reach), opts)
+                if term is not None:
+                    out.append((t, float(np.hypot(*(library.start_xy[row] - g[:2]))), term))
+            if out:
+                out.sort(
+                    key=lambda c: (c[0], c[1], library.durations[c[2].approach], c[2].approach)
+                )
+                return tuple(c[2] for c in out)
+        return ()
+
+    def _terminal_of(
+        self,
+        ks: tuple[int, ...],
+        row: int,
+        hold: PlacedPolicy,
+        hold_sweep: tuple[FloatArray, FloatArray],
+        opts: CatchOptions,
+    ) -> ShiftTerminal | None:
+        """The shift terminal of shifts ``ks`` from rest trim ``row``'s point to the
+        hold, if every containment holds exactly."""
+        library = self.library
+        at = np.round((library.start_xy[row] - self.origin) / self.grid).astype(np.int64)
+        before = library.policy(int(row)).goal_domain
+        shifts = []
+        points = []
+        reach = []
+        for k in ks:
+            pol, angle = self._shifts[k]
+            placed = PlacedPolicy(pol, angle, self.origin + at * self.grid)
+            if not placed.start_domain.contains_domain(before):
+                return None
+            shifts.append(placed)
+            points.append(placed.start_xy + self._shift_path[k])
+            reach.append(self._shift_reach[k])
+            before = placed.goal_domain
+            at = at + self._shift_cells[k]
+        if not hold.start_domain.contains_domain(before):
+            return None
+        points.append(hold.start_xy + hold_sweep[0])
+        reach.append(hold_sweep[1])
+        return ShiftTerminal(
+            tuple(shifts),
+            hold,
+            int(row),
+            np.ascontiguousarray(np.concatenate(points)),
+            np.concatenate(reach),
+            (float(opts.settled_lean[0]), float(opts.settled_lean[1])),
+        )
 
     def _candidates(
         self, state: FloatArray, classes: tuple[str, ...], flat: FloatArray | None = None
@@ -539,9 +729,20 @@ class Capture:
             rot = np.array([[c, -s], [s, c]])
             if not np.all(self._clear(start + m.path @ rot.T, m.reach)):
                 continue
-            ways = self._handovers(cell, m.lean_class == STILL)
+            still = m.lean_class == STILL
+            ways = self._handovers(cell, still)
             if settle is not None and ways:
                 settle(np.array(sorted({w[2] for w in ways}), dtype=np.int64))
+            if cost_to_go is not None and not any(
+                math.isfinite(float(cost_to_go[w[2]])) for w in ways
+            ):
+                # The nearer ways end only on rest trims that do not reach the goal (near
+                # walls, where the stopping allowance leaves a rest trim no way out):
+                # every two-shift way is read.
+                more = self._chains(cell, still, every=True)
+                if settle is not None and more:
+                    settle(np.array(sorted({w[2] for w in more}), dtype=np.int64))
+                ways = ways + more
             for shift_t, ks, row in ways:
                 togo = 0.0 if cost_to_go is None else float(cost_to_go[row])
                 if not math.isfinite(togo):
@@ -601,3 +802,80 @@ class TerminalPolicy(PlacedPolicy):
         """E.g. ``regulate[ep=0.55m]@(1.23, 2.5)``."""
         x, y = self.goal_xy
         return f"{self.policy.name}@({x:g}, {y:g})"
+
+
+@dataclass(frozen=True, eq=False)
+class ShiftTerminal:
+    """A goal at rest off the lattice reached by shifts where no capture regulator fits:
+    from the end of a library rest trim (``approach``), plain shifts of the palette
+    (:meth:`Capture.shift_terminals`) to a grid point next to the goal whose G holds
+    it, then the palette's settled catch from rest held there until the robot is at
+    the goal. Catch ⪰ shift ⪰ rest trim, run the other way: the rest trim's G lies in
+    the first shift's S, each shift's G in the next one's S, the last one's G in the
+    hold's S (all exact ellipsoid containments), and every swept D' grown by the
+    footprint is clear of the map's obstacles.
+
+    Attributes
+    ----------
+    shifts : tuple of PlacedPolicy
+        In the order they run (one or two).
+    hold : PlacedPolicy
+        The rest hold at the end point (:attr:`goal_xy`); run again as long as the robot
+        is in its S and not yet at the goal.
+    approach : int
+        The library rest trim the task reaches first.
+    sweep_points : ndarray, shape (K, 2)
+        Samples of the shifts' and the hold's reference (m, world frame) ...
+    sweep_reach : ndarray, shape (K,)
+        ... and the radius of D' there plus half the gap to a neighbouring sample (m):
+        the discs whose union holds every swept D' (checked against moving obstacles).
+    lean_band : (float, float)
+        Lean (rad) and lean rate (rad/s) within which the shifts and the hold are
+        verified (the settled band): a stage starts only inside it.
+    """
+
+    shifts: tuple[PlacedPolicy, ...]
+    hold: PlacedPolicy
+    approach: int
+    sweep_points: FloatArray
+    sweep_reach: FloatArray
+    lean_band: tuple[float, float]
+
+    @property
+    def stages(self) -> tuple[PlacedPolicy, ...]:
+        """The shifts, then the hold."""
+        return (*self.shifts, self.hold)
+
+    @property
+    def start_domain(self) -> EllipsoidalDomain:
+        """S of the first shift (world frame): it holds the approach trim's G."""
+        return self.shifts[0].start_domain
+
+    @property
+    def goal_domain(self) -> EllipsoidalDomain:
+        """G of the hold (world frame, the last shift's G too): it holds the goal."""
+        return self.hold.goal_domain
+
+    @property
+    def goal_xy(self) -> FloatArray:
+        """The grid point it holds the robot at (m), within a grid spacing of the goal."""
+        return self.hold.start_xy
+
+    @property
+    def duration(self) -> float:
+        """Duration of the shifts and one hold (s)."""
+        return float(sum(p.duration for p in self.stages))
+
+    @property
+    def name(self) -> str:
+        """E.g. ``shift_3_4@0°(1, 2) + catch_0[settled,S=1G]@0°(1.09, 2.12)``."""
+        return " + ".join(p.name for p in self.stages)
+
+    def accepts_lean(self, lean: float, rate: float) -> bool:
+        """Whether a stage may start at this lean and lean rate deviation (norms, rad
+        and rad/s) from upright: within the band it was verified from."""
+        return abs(lean) <= self.lean_band[0] and abs(rate) <= self.lean_band[1]
+
+
+#: What ends a task toward a goal at rest off the lattice.
+Terminal = TerminalPolicy | ShiftTerminal

@@ -31,7 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from gracenav.control import CONTROL_RATE, TrackingLaw
 from gracenav.errors import ConfigError, PlanningError
-from gracenav.execution.capture import CapturePlan, TerminalPolicy, capture_for
+from gracenav.execution.capture import CapturePlan, Terminal, capture_for
 from gracenav.execution.episode import Episode, ExecutionLog, drive
 from gracenav.execution.goals import Goals
 from gracenav.execution.obstacles import ObstacleTracker
@@ -62,6 +62,9 @@ BoolArray = NDArray[np.bool_]
 _BALANCING_SEARCH = 64
 #: Most policies a lazy tree closes to find where balancing mode holds the robot.
 _LAZY_RECOVERY_BUDGET = 200_000
+#: Trees toward at most this many approach trims are searched for a start that reaches
+#: neither the goal's trim nor its terminals (:meth:`HybridController._other_end`).
+_START_TREES = 8
 
 
 class HybridController:
@@ -151,12 +154,12 @@ class HybridController:
         """
         return self.goals.goal_policy(goal)
 
-    def terminal_policies(self, goal: ArrayLike) -> tuple[TerminalPolicy, ...]:
-        """Terminal regulators for a goal at rest off the lattice, best first
-        (:meth:`Goals.terminal_policies`)."""
+    def terminal_policies(self, goal: ArrayLike) -> tuple[Terminal, ...]:
+        """Terminals (capture regulators, else shifts) for a goal at rest off the
+        lattice, best first (:meth:`Goals.terminal_policies`)."""
         return self.goals.terminal_policies(goal)
 
-    def _terminal(self, goal: ArrayLike, goal_id: int) -> TerminalPolicy | None:
+    def _terminal(self, goal: ArrayLike, goal_id: int) -> Terminal | None:
         return self.goals.terminal(goal, goal_id)
 
     def tree(self, goal_policy: int) -> PolicyTree | LazyPolicyTree:
@@ -269,6 +272,50 @@ class HybridController:
             flat_state=flat,
         )
 
+    def _other_end(
+        self, x: FloatArray, goal: ArrayLike, *, capture: bool
+    ) -> tuple[Terminal, PolicyTree | LazyPolicyTree, int, CapturePlan | None] | None:
+        """For a start that reaches neither the goal's trim nor its terminals: the
+        cheapest of the goal's other terminals (:meth:`Goals.alternatives`, a goal at
+        rest only) that a policy whose S holds the start reaches, or else that a
+        capture of the start reaches, with trees toward at most :data:`_START_TREES`
+        approach trims: (terminal, tree, row or :data:`CAPTURE`, capture plan)."""
+        g = np.asarray(goal, dtype=float)
+        if np.any(g[2:] != 0.0):
+            return None
+        p = position_state(x, self.radius)
+        trees: dict[int, PolicyTree | LazyPolicyTree] = {}
+        best: tuple[float, Terminal, int] | None = None
+        for cand in self.goals.alternatives(g):
+            a = cand.approach
+            if a not in trees:
+                if len(trees) >= _START_TREES:
+                    continue
+                trees[a] = self.tree(a)
+            row = self.best_policy(p, trees[a])
+            if row >= 0:
+                cost = float(trees[a].cost_to_go[row]) + cand.duration
+                if best is None or cost < best[0]:
+                    best = (cost, cand, row)
+        if best is not None:
+            return best[1], trees[best[1].approach], best[2], None
+        if not capture:
+            return None
+        caught: tuple[float, Terminal, CapturePlan] | None = None
+        plans: dict[int, CapturePlan | None] = {}
+        for cand in self.goals.alternatives(g):
+            tree = trees.get(cand.approach)
+            if tree is None:
+                continue
+            if cand.approach not in plans:
+                plans[cand.approach] = self.capture_plan(x, tree)
+            plan = plans[cand.approach]
+            if plan is not None and (caught is None or plan.cost + cand.duration < caught[0]):
+                caught = (plan.cost + cand.duration, cand, plan)
+        if caught is None:
+            return None
+        return caught[1], trees[caught[1].approach], CAPTURE, caught[2]
+
     def best_policy(self, p: ArrayLike, tree: PolicyTree | LazyPolicyTree) -> int:
         """The policy with the lowest cost-to-go whose S contains ``p`` (−1 if none).
 
@@ -341,7 +388,7 @@ class HybridController:
             raise ConfigError(f"a start state is a finite array of shape (8,), got {x0!r}")
         self._task = None
         goal_ids = [self.goal_policy(g) for g in goals]
-        terminals: list[TerminalPolicy | None] = [
+        terminals: list[Terminal | None] = [
             self._terminal(g, i) for g, i in zip(goals, goal_ids, strict=True)
         ]
         p = position_state(x, self.radius)
@@ -379,14 +426,28 @@ class HybridController:
             plan = self.capture_plan(x, tree)
             if plan is not None:
                 current = CAPTURE
+        if current < 0 and plan is None and dyn is None and len(goals) == 1:
+            # Nor through the goal's own terminals: through any other end of the way.
+            other = self._other_end(x, goals[0], capture=options.capture)
+            if other is not None:
+                cand, tree, current, plan = other
+                goal_ids, terminals = [cand.approach], [cand]
         if current < 0 and plan is None:
             hits = self.library.start_domain_contains(p[None, :])
-            why = (
-                "no library policy's start domain contains the start state, and no catch "
-                "placed there clears the obstacles (outside coverage)"
-                if hits.nnz == 0
-                else "the goal cannot be reached from any policy whose start domain contains it"
-            )
+            if hits.nnz == 0:
+                why = (
+                    "no library policy's start domain contains the start state, and no catch "
+                    "placed there clears the obstacles (outside coverage)"
+                )
+            else:
+                why = "the goal cannot be reached from any policy whose start domain contains it"
+                if options.capture and dyn is None:
+                    why += (
+                        ", nor from a rest trim of the library that a catch and at most two "
+                        "shifts reach from the start with their swept outer domains clear (near "
+                        "walls a rest trim may have no way out that fits); move the start or "
+                        "use more lattice halvings"
+                    )
             where = ", ".join(f"{v:.3g}" for v in p)
             raise PlanningError(f"start ({where}): {why}")
         self._task = Supervisor(

@@ -215,6 +215,20 @@ class ObstacleTracker:
                 return True
         return False
 
+    def sweep_blocked(self, points: FloatArray, reach: FloatArray, duration: float) -> bool:
+        """Whether discs of radii ``reach`` (m) at ``points`` (k, 2), the swept D' of a
+        placed policy (or several run one after another) of ``duration`` (s), grown by
+        the footprint, meet a known obstacle's capsule (as :meth:`disc_blocked`)."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        rad = np.asarray(reach, dtype=float).reshape(-1)
+        for ob in self.known:
+            c = np.asarray(ob.center, dtype=float)
+            b = c + np.asarray(ob.velocity, dtype=float) * (duration + self.sensing.period)
+            need = ob.radius + self.footprint + self.sensing.margin
+            if np.any(_segment_distance(pts, c, b) - rad < need):
+                return True
+        return False
+
     def hold_clear(self, xy: FloatArray, radius: float) -> bool:
         """Whether a disc of ``radius`` (m) at ``xy`` is clear of every known obstacle's
         motion over :data:`HOLD_HORIZON` (footprint and margin included)."""

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gracenav.control.law import TrackingLaw
-from gracenav.execution.capture import CapturePlan, PlacedPolicy
+from gracenav.execution.capture import CapturePlan, PlacedPolicy, ShiftTerminal
 from gracenav.execution.episode import ExecutionLog
 from gracenav.execution.jobs import Job
 from gracenav.execution.obstacles import ObstacleTracker
@@ -42,7 +42,8 @@ if TYPE_CHECKING:
     from concurrent.futures import ThreadPoolExecutor
 
     from gracenav.control import ControllerGains as _Gains
-    from gracenav.execution.capture import TerminalPolicy
+    from gracenav.execution.capture import Terminal
+    from gracenav.execution.goals import Goals
     from gracenav.library import PolicyLibrary
     from gracenav.params import BallbotParams
     from gracenav.planning import LazyPolicyTree, PolicyTree
@@ -67,6 +68,10 @@ CAPTURE_WAIT = 1.0
 #: ahead (s) and starts then (later if it lands later): longer than a capture plan
 #: takes on this machine (2-28 ms measured).
 CAPTURE_LEAD = 0.05
+#: When moving obstacles block a goal's own end (its trim or terminal), other ends of
+#: the way to it (:meth:`Goals.alternatives`) are tried with the trees toward at most
+#: this many approach trims.
+RETARGET_TREES = 16
 
 _NO_CENTER = np.zeros((0,))
 _NO_SHAPE = np.zeros((0, 0))
@@ -77,6 +82,7 @@ class Planner(Protocol):
     controller's model, and the planning queries (:class:`HybridController`)."""
 
     library: PolicyLibrary
+    goals: Goals
     gains: _Gains
     params: BallbotParams
     dt: float
@@ -144,7 +150,7 @@ class Supervisor:
         options: ExecutionOptions,
         *,
         sequence: list[int],
-        terminals: list[TerminalPolicy | None],
+        terminals: list[Terminal | None],
         goal_states: list[FloatArray],
         tree: PolicyTree | LazyPolicyTree,
         current: int,
@@ -167,6 +173,13 @@ class Supervisor:
         self.holding = holding
         self.loops = loops
         self.k_goal = 0
+        #: The stage of a shift terminal running (:attr:`ShiftTerminal.stages`).
+        self.term_stage = 0
+        #: Replans logged when the free other ends of the way were last listed, those
+        #: ends, and the trees toward their approach trims (see _retarget).
+        self.retarget_seen = -1
+        self.retarget_free: list[Terminal] = []
+        self.retarget_trees: dict[int, Any] = {}
         self.captured: list[PlacedPolicy] = []
         self.capture_plans: list[tuple[float, CapturePlan]] = []
         self.capture_row = -1
@@ -311,14 +324,19 @@ class Supervisor:
             self._begin_chunk()
             return
         if self.ticks >= self.max_ticks:
-            self._finish(TaskStatus.TIMEOUT)
+            self._finish(TaskStatus.BLOCKED if self.holding else TaskStatus.TIMEOUT)
             return
         hc, dt = self.hc, self.dt
         current = self.current
         term = self.terminals[self.k_goal]
         placed: PlacedPolicy | None = None
         if current == CAPTURE or (current == TERMINAL and term is not None):
-            placed = self.captured[0] if current == CAPTURE else term
+            if current == CAPTURE:
+                placed = self.captured[0]
+            elif isinstance(term, ShiftTerminal):
+                placed = term.stages[self.term_stage]
+            else:
+                placed = term
             assert placed is not None
             prim = placed.primitive
             is_goal = False
@@ -397,6 +415,8 @@ class Supervisor:
                 self._look(t, p)
             if self.holding:
                 free_row = hc.best_policy(p, self.tree)
+                if self._end_blocked():  # the way may be free, but not its end
+                    free_row = self._retarget(p)
                 if free_row >= 0:  # the way is free again
                     self._event(free_row, EventReason.RESUMED)
                     self.current, self.offset, self.holding = free_row, 0, False
@@ -406,11 +426,7 @@ class Supervisor:
                 blocked_now = (
                     bool(dyn.known)
                     if current == CAPTURE
-                    else dyn.disc_blocked(
-                        term.goal_xy,
-                        float(term.policy.outer_extents(0.0)[0]),
-                        term.policy.duration,
-                    )
+                    else self._terminal_blocked(term)
                     if current == TERMINAL and term is not None
                     else dyn.is_blocked(current)
                     or (self.holding and not dyn.hold_row_clear(current))
@@ -419,6 +435,8 @@ class Supervisor:
                     return  # the same policy goes on
                 self.offset = 0
                 nxt = hc.best_policy(p, self.tree)
+                if nxt < 0 and self._end_blocked():
+                    nxt = self._retarget(p)
                 if nxt >= 0:
                     self._event(nxt, EventReason.OBSTACLE)
                     self.current, self.holding = nxt, False
@@ -442,7 +460,13 @@ class Supervisor:
         if self.ticks >= self.max_ticks:
             self._finish(TaskStatus.BLOCKED if self.holding else TaskStatus.TIMEOUT)
             return
-        if row == -1 and dyn is not None and np.any(dyn.blocked):
+        if row == -1 and dyn is not None and (np.any(dyn.blocked) or self._end_blocked()):
+            if self._end_blocked():
+                row = self._retarget(p)
+                if row >= 0:  # another end of the way to the goal is free
+                    self._event(row, EventReason.OBSTACLE)
+                    self.current = row
+                    return
             wait_row = dyn.hold_policy(p)
             if wait_row >= 0:  # obstacles block the way: wait on a free rest trim
                 self._event(wait_row, EventReason.BLOCKED)
@@ -544,7 +568,10 @@ class Supervisor:
         if self.look_job is not None and self.look_job.ready(self.ticks):
             assert dyn is not None
             look, self.look_job = self.look_job.result(), None
+            goal = self.tree.goal
             self.tree = dyn.apply(look)
+            if self.tree.goal != goal:  # the task's end moved while the look was computed
+                self.tree = dyn.retarget(self.hc.tree(goal))
             if not (seg.balance or seg.waiting):
                 # The policy is judged against what the look saw, here.
                 self.segment = None
@@ -601,6 +628,8 @@ class Supervisor:
                     return EventReason.NOT_IN_GOAL, hc.best_policy(p, self.tree)
                 return EventReason.GRACEFUL, nxt
             return EventReason.NOT_IN_GOAL, hc.best_policy(p, self.tree)
+        if current == TERMINAL and isinstance(term, ShiftTerminal):
+            return self._next_stage(term, p, near_goal)
         if current == TERMINAL and term is not None:
             if near_goal:
                 self.goals_reached.append((self.t, self.k_goal))
@@ -613,8 +642,17 @@ class Supervisor:
         if not inst.goal_domain.contains(p):
             return EventReason.NOT_IN_GOAL, hc.best_policy(p, self.tree)
         if seg.is_goal and term is not None:
-            # Off-lattice goal: the terminal regulator takes over from the rest trim.
-            if term.start_domain.contains(p):
+            # Off-lattice goal: the terminal takes over from the rest trim.
+            if self.dyn is not None and self._end_blocked():
+                # Known obstacles block the terminal: another end of the way, or wait.
+                row = self._retarget(p)
+                term = self.terminals[self.k_goal]
+                if row < 0 or term is None:
+                    return EventReason.OBSTACLE, -1
+                if term.approach != current:
+                    return EventReason.OBSTACLE, row
+            if self._terminal_starts(term, p):
+                self.term_stage = 0
                 return EventReason.TERMINAL, TERMINAL
             return EventReason.HOLD_GOAL, current
         if seg.is_goal:
@@ -643,6 +681,118 @@ class Supervisor:
             return EventReason.NOT_IN_GOAL, hc.best_policy(p, self.tree)
         return EventReason.GRACEFUL, nxt
 
+    # -- the end at a goal off the lattice ------------------------------------------
+    def _terminal_starts(self, term: Terminal, p: FloatArray) -> bool:
+        """Whether the terminal may start now: its S holds ``p`` (and, for shifts, the
+        lean is within the band they were verified from)."""
+        if not term.start_domain.contains(p):
+            return False
+        if isinstance(term, ShiftTerminal):
+            x = self.x
+            return term.accepts_lean(float(np.hypot(*x[2:4])), float(np.hypot(*x[6:8])))
+        return True
+
+    def _next_stage(
+        self, term: ShiftTerminal, p: FloatArray, near_goal: bool
+    ) -> tuple[EventReason, int] | None:
+        """After a stage of a shift terminal: the next shift when its S holds the state
+        (the last one's G does, where the task ended), the goal when the robot is there,
+        the hold while it is not (its S holds the state), else back to the library."""
+        stage = term.stages[self.term_stage]
+        if not stage.goal_domain.contains(p):
+            return EventReason.NOT_IN_GOAL, self.hc.best_policy(p, self.tree)
+        if self.term_stage + 1 < len(term.shifts):
+            self.term_stage += 1
+            return EventReason.GRACEFUL, TERMINAL
+        if near_goal:
+            self.goals_reached.append((self.t, self.k_goal))
+            self._finish(TaskStatus.GOAL_REACHED)
+            return None
+        x = self.x
+        if term.hold.start_domain.contains(p) and term.accepts_lean(
+            float(np.hypot(*x[2:4])), float(np.hypot(*x[6:8]))
+        ):
+            self.term_stage = len(term.shifts)
+            return EventReason.HOLD_GOAL, TERMINAL
+        return EventReason.NOT_IN_GOAL, self.hc.best_policy(p, self.tree)
+
+    def _terminal_blocked(self, term: Terminal) -> bool:
+        """Whether a known moving obstacle's predicted motion meets the terminal's swept
+        D' grown by the footprint and margin (over the terminal's duration)."""
+        dyn = self.dyn
+        assert dyn is not None
+        if isinstance(term, ShiftTerminal):
+            return dyn.sweep_blocked(term.sweep_points, term.sweep_reach, term.duration)
+        return dyn.disc_blocked(
+            term.goal_xy,
+            float(term.policy.outer_extents(0.0)[0]),
+            term.policy.duration,
+        )
+
+    def _end_blocked(self) -> bool:
+        """Whether known obstacles block the current goal's own end: its trim policy,
+        or the approach trim or the terminal of a goal off the lattice."""
+        dyn = self.dyn
+        if dyn is None:
+            return False
+        term = self.terminals[self.k_goal]
+        if term is None:
+            return dyn.is_blocked(self.sequence[self.k_goal])
+        return dyn.is_blocked(term.approach) or self._terminal_blocked(term)
+
+    def _retarget(self, p: FloatArray) -> int:
+        """Another end of the way to the goal while known obstacles block its own (a
+        parked cart next to the goal): of the goal's terminals
+        (:meth:`Goals.alternatives`) whose approach trim and swept D' are clear, the one
+        with the least cost-to-go from a policy whose S holds ``p`` plus its duration,
+        on the trees toward at most :data:`RETARGET_TREES` approach trims without the
+        blocked policies (kept until what blocks changes). On success the task ends
+        there instead (the tree, the goal trim and the terminal change) and the row to
+        run is returned; −1 if none is free. Only for the last goal of a point-to-point
+        task, at rest."""
+        dyn, hc = self.dyn, self.hc
+        if dyn is None or self.loops > 1 or self.k_goal + 1 != len(self.sequence):
+            return -1
+        g = self.goal_states[self.k_goal]
+        if np.any(g[2:] != 0.0):
+            return -1
+        if self.retarget_seen != len(dyn.replans):
+            self.retarget_seen = len(dyn.replans)
+            lib = hc.library
+            free = [
+                t
+                for t in hc.goals.alternatives(g)
+                if not dyn.is_blocked(t.approach) and not self._terminal_blocked(t)
+            ]
+            free.sort(key=lambda t: (t.duration, float(lib.durations[t.approach]), t.approach))
+            self.retarget_free = free
+            self.retarget_trees = {}
+        trees = self.retarget_trees
+        rows: dict[int, int] = {}  # the policy to run toward each approach trim
+        best: tuple[float, Terminal, Any, int] | None = None
+        for term in self.retarget_free:
+            a = term.approach
+            if a not in trees:
+                if len(trees) >= RETARGET_TREES:
+                    continue
+                trees[a] = dyn.retarget(hc.tree(a))
+            tree = trees[a]
+            if a not in rows:
+                rows[a] = hc.best_policy(p, tree)
+            row = rows[a]
+            if row < 0:
+                continue
+            cost = float(tree.cost_to_go[row]) + term.duration
+            if best is None or cost < best[0]:
+                best = (cost, term, tree, row)
+        if best is None:
+            return -1
+        _, term, tree, row = best
+        self.sequence[self.k_goal] = term.approach
+        self.terminals[self.k_goal] = term
+        self.tree = tree
+        return row
+
     # -- balancing mode ------------------------------------------------------------
     def _begin_chunk(self) -> None:
         options = self.options
@@ -670,7 +820,7 @@ class Supervisor:
     def _end_chunk(self, seg: Segment, n: int) -> None:
         dyn, options = self.dyn, self.options
         self.waited += n * self.dt
-        if dyn is not None and np.any(dyn.blocked):
+        if dyn is not None and (np.any(dyn.blocked) or self._end_blocked()):
             self.blocked_time += n * self.dt  # waiting for the way to clear
             if options.resume_from_balancing:  # as long as it takes
                 self.limit = max(self.limit, self.waited + options.balance_chunk)
@@ -682,6 +832,8 @@ class Supervisor:
                 self.hold_xy = self.hc.recovery_point(p, self.tree, dyn)
         if options.resume_from_balancing and not self.held:
             nxt = self.hc.best_policy(p, self.tree)
+            if dyn is not None and self._end_blocked():  # the way is free, not its end
+                nxt = self._retarget(p)
             if nxt >= 0:
                 self.recovered = nxt
                 self._end_balancing()
@@ -690,7 +842,7 @@ class Supervisor:
         self.balancing = False
         dyn = self.dyn
         if self.recovered < 0:
-            if dyn is not None and np.any(dyn.blocked):
+            if dyn is not None and (np.any(dyn.blocked) or self._end_blocked()):
                 self._finish(TaskStatus.BLOCKED)
             elif self.waited < self.limit - 1e-9:
                 self._finish(TaskStatus.TIMEOUT)
