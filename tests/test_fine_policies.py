@@ -4,6 +4,7 @@ only near obstacles, and chained to the unscaled policies by exact containment."
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ from gracenav.planning.graph import build_graph, gracefully_prepares
 from gracenav.policies import fine_label, run_policy, verify_placements
 from gracenav.world import load_map
 
+ROOT = Path(__file__).resolve().parent.parent
 LEVELS = (0.5, 0.25)
 
 #: A straight passage 0.72 m wide (walls 0.1 m thick) between two 2 m rooms: the 0.2 m
@@ -146,3 +148,33 @@ def test_the_robot_drives_through_the_passage_without_contact(palette) -> None:
     assert np.linalg.norm(ps[-1, :2] - [7.0, 1.0]) < 0.05
     assert float(np.min(world.clearance(ps[:, :2]))) - 0.2 > 0.0
     assert len(ep.captures) == 0
+
+
+def test_captures_end_only_on_rest_trims_whose_start_domain_holds_their_goal() -> None:
+    """Near walls the library has fine rest trims, whose S (0.04 m for x0.25) does not
+    hold a shift's or a settled catch's G (0.08 m): every capture plan on the cluttered
+    room chains by exact containment, catch to shifts to rest trim."""
+    from gracenav.execution.capture import capture_for
+    from gracenav.palette import load_palette
+
+    world = load_map(ROOT / "examples" / "maps" / "room_6m_cluttered.yaml")
+    lib = build_library(load_palette(), world, footprint_radius=0.2, max_halvings=1)
+    capture = capture_for(lib)
+    rng = np.random.default_rng(3)
+    xy = rng.uniform(0.0, 6.0, size=(4000, 2))
+    xy = xy[world.is_free(xy) & (world.clearance(xy) >= 0.3)][:400]
+    v = rng.uniform(-0.4, 0.4, size=xy.shape)
+    planned = ends_on_fine = 0
+    for x in np.concatenate([xy, v], axis=1):
+        plan = capture.plan(x, lean_deviation=(0.0, 0.0))
+        if plan is None:
+            continue
+        planned += 1
+        last = plan.catch.goal_domain
+        for shift in plan.shifts:
+            assert shift.start_domain.contains_domain(last)
+            last = shift.goal_domain
+        assert lib.policy(plan.rest_row).start_domain.contains_domain(last)
+        ends_on_fine += bool(lib.is_fine([plan.rest_row])[0])
+    assert planned >= 200
+    assert ends_on_fine >= 1

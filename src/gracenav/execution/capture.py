@@ -25,6 +25,7 @@ import weakref
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -41,6 +42,9 @@ from gracenav.policies.catches import PUSHED, SETTLED, STILL, lean_class_of
 from gracenav.policies.domains import EllipsoidalDomain
 from gracenav.policies.placement import instantiated_reference
 from gracenav.sim import Reference
+
+if TYPE_CHECKING:
+    from gracenav.palette import Palette
 
 __all__ = [
     "Capture",
@@ -240,6 +244,20 @@ def _sweep_of(policy: MotionPolicy, step: float) -> tuple[FloatArray, FloatArray
 _PLANNERS: weakref.WeakKeyDictionary[PolicyLibrary, Capture] = weakref.WeakKeyDictionary()
 
 
+def _holds_catch_goals(palette: Palette) -> NDArray[np.bool_]:
+    """Per palette policy, whether its S holds the G of every catch and shift of the
+    palette placed at its own start (concentric, exact ellipsoid containment)."""
+    mats = [p.goal_domain.shape_matrix for p in (*palette.catches, *palette.shifts)]
+    goals = np.unique(np.array(mats).reshape(len(mats), -1), axis=0).reshape(-1, 4, 4)
+    out = np.zeros(len(palette.policies), dtype=bool)
+    for i, pol in enumerate(palette.policies):
+        start = pol.start_domain
+        out[i] = all(
+            start.contains_domain(EllipsoidalDomain(start.center, g), tol=1e-9) for g in goals
+        )
+    return out
+
+
 def capture_for(library: PolicyLibrary) -> Capture:
     """The library's capture planner: built on first use, then reused.
 
@@ -335,6 +353,14 @@ class Capture:
             (int(key[0]), int(key[1])): rest[order[a:b]]
             for key, a, b in zip(points, bounds[:-1], bounds[1:], strict=True)
         }
+        # The rest rows a catch or a shift may end on: their S holds every catch's and
+        # shift's G (a fine copy's rest trim, of a smaller S, may not).
+        holds = _holds_catch_goals(palette)
+        self._rest_onto: dict[tuple[int, int], NDArray[np.int64]] = {}
+        for key, rows in self._rest.items():
+            ok = rows[holds[library.palette_index[rows]]]
+            if ok.size:
+                self._rest_onto[key] = ok
         self._direct_ways: dict[tuple[int, int, bool], list[_Way]] = {}
         self._chained: dict[tuple[int, int, bool], list[_Way]] = {}
         self._chained_every: dict[tuple[int, int, bool], list[_Way]] = {}
@@ -391,12 +417,12 @@ class Capture:
         if got is not None:
             return got
         out: list[_Way] = []
-        for row in self._rest.get(cell, ()):
+        for row in self._rest_onto.get(cell, ()):
             out.append((0.0, (), int(row)))
         q = self.origin + np.asarray(cell, dtype=float) * self.grid
         ends = self._shift_cells + np.asarray(cell, dtype=np.int64)
         found = [
-            None if self._shift_still[k] and not still else self._rest.get((int(i), int(j)))
+            None if self._shift_still[k] and not still else self._rest_onto.get((int(i), int(j)))
             for k, (i, j) in enumerate(ends)
         ]
         ks = np.array([k for k, rows in enumerate(found) if rows is not None], dtype=np.int64)
