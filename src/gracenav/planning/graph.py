@@ -53,7 +53,13 @@ from scipy import sparse
 
 from gracenav.errors import ConfigError
 from gracenav.library import InstantiatedPolicy, PolicyLibrary
-from gracenav.planning._search import _count_edges, _count_rows_edges, _fill_edges, _successors_of
+from gracenav.planning._search import (
+    _count_all_edges,
+    _count_edges,
+    _count_rows_edges,
+    _fill_edges,
+    _successors_of,
+)
 
 __all__ = [
     "STORED_EDGES",
@@ -259,9 +265,7 @@ class PreparesGraph:
             elif stored is not None:
                 out = int(stored[0][-1])
             else:
-                counts = np.empty(self.num_nodes, dtype=np.int64)
-                _count_edges(counts, True, *self.lattice_edges.kernel_args())
-                out = int(counts.sum())
+                out = int(_count_all_edges(*self.lattice_edges.kernel_args()))
             self._cache["num_edges"] = out
         return int(out)
 
