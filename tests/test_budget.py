@@ -27,6 +27,8 @@ from gracenav.scenarios import (
     load_scenario_map,
     parse_scenario,
     prepare_library,
+    run_scenario,
+    summary_dict,
 )
 from gracenav.world import load_map, office_map
 
@@ -117,6 +119,8 @@ def test_automatic_halvings_fit_the_budget(palette: Any) -> None:
     assert check_scenario(small, world, palette) == 0
     prepared = prepare_library(small, palette)
     assert prepared.max_halvings == 0 and prepared.library.spacing == palette.d
+    result = run_scenario(small, palette=palette, prepared=prepared)
+    assert summary_dict(result)["library_spacing_m"] == palette.d == 0.5
     # The halvings chosen depend on the budget: so does the prepared library's key.
     assert library_key(small, palette) != library_key(sc, palette)
     given = parse_scenario(room(max_halvings=1), source="room.yaml")
