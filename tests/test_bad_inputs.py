@@ -262,12 +262,12 @@ def test_surveillance_loops(tmp_path, capsys) -> None:
 
 def test_halvings_over_budget_give_the_estimate(tmp_path, capsys) -> None:
     data = scenario(**{"planner.max_halvings": 8})
-    err = run_bad(tmp_path, capsys, data, "policy instantiations")
-    assert "budget of 2e+06" in err and re.search(r"max_halvings <= [1-7]\b", err)
+    err = run_bad(tmp_path, capsys, data, "more than the memory budget of 2 GiB")
+    assert "planner.memory_limit_gib" in err and re.search(r"max_halvings <= [1-7]\b", err)
 
 
-def test_the_instantiation_budget_is_not_the_decoupled_baselines() -> None:
-    """The decoupled baseline builds no library: a map over gracenav's instantiation
+def test_the_memory_budget_is_not_the_decoupled_baselines() -> None:
+    """The decoupled baseline builds no library: a library over gracenav's memory
     budget is refused for gracenav only."""
     from gracenav.errors import ConfigError
     from gracenav.palette import load_palette
@@ -276,7 +276,7 @@ def test_the_instantiation_budget_is_not_the_decoupled_baselines() -> None:
     data = scenario(**{"planner.max_halvings": 8})
     sc = parse_scenario(data, source="big.yaml")
     world = load_scenario_map(sc)
-    with pytest.raises(ConfigError, match="policy instantiations"):
+    with pytest.raises(ConfigError, match="more than the memory budget"):
         check_scenario(sc, world, load_palette())
     dec = parse_scenario({**data, "planner": {"kind": "decoupled", "max_halvings": 8}}, source="d")
     check_scenario(dec, world, load_palette())  # no error
@@ -573,7 +573,7 @@ def test_leftovers_of_a_killed_run_are_recovered(tmp_path, capsys) -> None:
     # The next run into o restores them first (here it then fails on its scenario).
     path = write(tmp_path, scenario(**{"planner.max_halvings": 8}))
     status, _, err = cli(["run", str(path), "--out", str(tmp_path / "o")], capsys)
-    assert status == 2 and "policy instantiations" in one_line(err)
+    assert status == 2 and "memory budget" in one_line(err)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["o", "s.yaml"]
     assert (tmp_path / "o" / "trajectory.csv").read_text() == "previous"
 

@@ -363,3 +363,19 @@ def test_search_form_stores_the_reversed_graph_below_the_limit(
     assert fresh.search_form("time") is fresh and fresh.cached_csc("time") is None
     with pytest.raises(ConfigError, match="cost"):
         fresh.search_form("energy")  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("dense", [True, False])
+def test_edge_count_of_the_shipped_palette(
+    monkeypatch: pytest.MonkeyPatch, box_room_library: PolicyLibrary, dense: bool
+) -> None:
+    """The edge count (merged by point without the dense table) is the matrices' on a
+    library of the shipped palette, whose rest policies prepare themselves."""
+    import gracenav.planning.graph as graph_module
+
+    if not dense:
+        monkeypatch.setattr(graph_module, "_DENSE_LOOKUP", 0)
+    graph = build_graph(box_room_library)
+    assert (graph.lattice_edges.table.size > 0) == dense
+    e = graph.num_edges
+    assert e == graph.adjacency.nnz > 10_000

@@ -80,8 +80,18 @@ def register(sub: Any) -> None:
     lb.add_argument(
         "--max-halvings",
         type=number(integer=True, minimum=0, maximum=20),
-        default=1,
-        help="coverage refinement limit (default 1)",
+        default=None,
+        help="coverage refinement limit (default: the most, up to 1, whose estimated "
+        "memory fits --memory-limit-gib)",
+    )
+    # The scenarios' defaults (gracenav.scenarios.DEFAULT_MEMORY_LIMIT_GIB,
+    # MAX_MEMORY_LIMIT_GIB), written out: importing them would load the library at --help.
+    lb.add_argument(
+        "--memory-limit-gib",
+        type=number(positive=True, maximum=1024.0, unit="GiB"),
+        default=2.0,
+        help="memory budget (GiB, default 2): a library whose estimated peak would exceed "
+        "it is refused before it is built",
     )
     lb.set_defaults(func=run_library)
     rc = s.add_parser(
@@ -137,26 +147,27 @@ def run_library(args: argparse.Namespace) -> int:
     from gracenav.library import build_library
     from gracenav.palette import load_palette
     from gracenav.plotting.library import plot_library
-    from gracenav.scenarios import MAX_INSTANTIATIONS, estimate_instantiations
+    from gracenav.scenarios import choose_halvings
     from gracenav.world import load_map
 
     out = check_figure_path(args.out)
     palette = load_palette()
     world_map = load_map(args.map)
-    total, allowed = estimate_instantiations(world_map, palette, args.max_halvings)
-    if total > MAX_INSTANTIATIONS:
-        (x0, y0), (x1, y1) = world_map.bounds
-        hint = f"use --max-halvings {allowed}" if allowed >= 0 else "use a smaller map"
-        raise ConfigError(
-            f"--max-halvings {args.max_halvings} on this {x1 - x0:g} m × {y1 - y0:g} m map would "
-            f"try about {total:.3g} policy instantiations, more than the budget of "
-            f"{MAX_INSTANTIATIONS:.0e}; {hint}"
-        )
+    halvings = choose_halvings(
+        world_map,
+        palette,
+        max_halvings=args.max_halvings,
+        memory_limit=args.memory_limit_gib * 2**30,
+        footprint_radius=args.footprint,
+        source=str(args.map),
+        keys=("--max-halvings", "--memory-limit-gib"),
+    ).halvings
     lib = build_library(
         palette,
         world_map,
         footprint_radius=args.footprint,
-        max_halvings=args.max_halvings,
+        max_halvings=halvings,
+        memory_limit=None,  # checked above, against the command's budget
     )
     save_figure(out, lambda tmp: plot_library(lib, tmp, coverage=args.coverage, progress=True))
     print(f"{len(lib)} library policies, coverage {100 * lib.coverage:.1f} %; wrote {out}")

@@ -100,9 +100,10 @@ def _execute(
             bar.set_label(f"{sc.name}: writing")
             written = write_outputs(result, staging.staging, animation=animation)
     written = [out / p.name for p in written]
+    spacing = "" if result.library is None else f" (lattice spacing {result.library.spacing:g} m)"
     print(
-        f"library: {result.library_size} policies, {result.graph_edges} edges, coverage "
-        f"{100 * result.coverage:.1f} %, built in {1000 * result.library_seconds:.0f} ms"
+        f"library: {result.library_size} policies{spacing}, {result.graph_edges} edges, "
+        f"coverage {100 * result.coverage:.1f} %, built in {1000 * result.library_seconds:.0f} ms"
     )
     fell = []
     contact = []

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 import time
 import weakref
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -30,10 +31,15 @@ from gracenav.world import WorldMap
 __all__ = [
     "DEFAULT_MEMORY_LIMIT",
     "DEFAULT_SPEED_CLEARANCE",
+    "ESTIMATE_SAMPLES",
+    "LATTICE_POINT_BYTES",
     "MAX_SPEED_CLEARANCE",
     "POLICY_BYTES",
+    "LibrarySizeEstimate",
     "build_library",
     "estimate_library_size",
+    "expected_library_size",
+    "lattice_points",
     "max_trim_speed",
 ]
 
@@ -44,6 +50,16 @@ POLICY_BYTES = 208
 
 #: Default memory limit (bytes) of :func:`build_library`: 4 GiB.
 DEFAULT_MEMORY_LIMIT = 4 * 2**30
+
+#: Bytes per lattice point that estimating a pass allocates (coordinates, clearance and
+#: its sorted copy, per-point counts); a lattice above the limit at this rate is refused
+#: by arithmetic, before anything is allocated.
+LATTICE_POINT_BYTES = 64
+
+#: Undecided lattice points checked by :func:`expected_library_size` (a seeded uniform
+#: sample; all of them when there are fewer): ≈ 1.3 % standard error and ≈ 0.1 s on the
+#: 30 m × 50 m warehouse and the 100 m office (bench/bench_bigmaps.py).
+ESTIMATE_SAMPLES = 512
 
 #: Default stopping allowance of :func:`build_library` (s): extra clearance per m/s of
 #: reference speed toward an obstacle. With it every one of 900 seeded pushes (0–16 N s
@@ -279,6 +295,178 @@ def estimate_library_size(
     return count(tables["type_total_reach"]), count(tables["sample_first_reach"])
 
 
+@dataclass(frozen=True)
+class LibrarySizeEstimate:
+    """The number of policies one pass would keep, estimated before instantiating
+    (:func:`expected_library_size`).
+
+    Attributes
+    ----------
+    low, high : int
+        Bounds of the size (those of :func:`estimate_library_size`).
+    expected : float
+        Estimate of the size: exact at the lattice points the bounds decide, from a
+        uniform sample of the others.
+    std_error : float
+        Standard error of ``expected`` (0 when every undecided point was checked: then
+        ``expected`` is the size).
+    points : int
+        Lattice points.
+    undecided : int
+        Lattice points the bounds do not decide.
+    sampled : int
+        Undecided points checked.
+    """
+
+    low: int
+    high: int
+    expected: float
+    std_error: float
+    points: int
+    undecided: int
+    sampled: int
+
+    def upper(self, z: float = 2.0) -> float:
+        """``expected`` plus ``z`` standard errors, at most ``high``: the size to budget
+        memory for (z = 2: the true size exceeds it for about 2 % of seeds)."""
+        return float(min(self.high, self.expected + z * self.std_error))
+
+
+def expected_library_size(
+    palette: Palette,
+    world_map: WorldMap,
+    spacing: float,
+    *,
+    footprint_radius: float = 0.2,
+    sweep_step: float | None = None,
+    speed_clearance: float = DEFAULT_SPEED_CLEARANCE,
+    samples: int = ESTIMATE_SAMPLES,
+    seed: int = 0,
+) -> LibrarySizeEstimate:
+    """Estimate the number of policies one pass at ``spacing`` would keep, without
+    instantiating the pass.
+
+    A scale group keeps at most one policy per lattice point; the bounds of
+    :func:`estimate_library_size` decide a point for every group when the point's
+    clearance either reaches the footprint plus a whole swept D' of one of the group's
+    sizes (kept) or does not reach the footprint plus the first sample's reach of any
+    (not kept). At the points they leave undecided for some group, instantiation's own
+    test (largest size first, the swept samples checked against the map) runs on a
+    seeded uniform sample of ``samples`` points, or on all of them when there are
+    fewer, and the mean count there scales to all undecided points. The points are
+    independent, so with every undecided point checked the estimate is the size that
+    :func:`build_library` keeps.
+
+    Parameters
+    ----------
+    palette : Palette
+    world_map : WorldMap
+    spacing : float
+        Lattice spacing (m).
+    footprint_radius, sweep_step, speed_clearance
+        As for :func:`build_library`.
+    samples : int
+        Undecided points to check, >= 2.
+    seed : int
+        Seed of the sample.
+
+    Returns
+    -------
+    LibrarySizeEstimate
+    """
+    if isinstance(samples, bool) or not isinstance(samples, int) or samples < 2:
+        raise ConfigError(f"samples must be an integer >= 2, got {samples!r}")
+    step = float(sweep_step) if sweep_step is not None else float(world_map.resolution)
+    fp = float(footprint_radius)
+    types, tables = _palette_tables(palette, step, float(speed_clearance))
+    _, _, _, points = _lattice(world_map, spacing)
+    c0 = world_map.clearance(points)
+    placed = _placed_types(types)
+    groups = types.scale_group[placed]
+    n_groups = int(types.scale_group.max(initial=-1)) + 1
+
+    def per_point(reach: FloatArray) -> IntArray:
+        """Groups per point of which some size has ``c0 >= fp + reach``."""
+        need = np.full(n_groups, np.inf)
+        np.minimum.at(need, groups, fp + reach[placed])
+        counts: IntArray = np.searchsorted(np.sort(need), c0, side="right")
+        return counts
+
+    low = per_point(tables["type_total_reach"])
+    high = per_point(tables["sample_first_reach"])
+    undecided = np.flatnonzero(low < high)
+    u = int(undecided.size)
+    if u > samples:
+        rng = np.random.default_rng(seed)
+        sample = np.sort(rng.choice(undecided, samples, replace=False))
+    else:
+        sample = undecided
+    n = int(sample.size)
+    expected = float(low.sum())
+    extra = np.zeros(0)
+    if n:
+        kept = _kept_per_point(types, tables, world_map, points[sample], c0[sample], fp)
+        extra = (kept - low[sample]).astype(float)
+        expected += u * float(extra.mean())
+    std_error = 0.0
+    if 1 < n < u:  # the standard error of a sample without replacement
+        std_error = u * float(extra.std(ddof=1)) / math.sqrt(n) * math.sqrt(1.0 - n / u)
+    return LibrarySizeEstimate(
+        low=int(low.sum()),
+        high=int(high.sum()),
+        expected=expected,
+        std_error=std_error,
+        points=int(points.shape[0]),
+        undecided=u,
+        sampled=n,
+    )
+
+
+def _kept_per_point(
+    types: PolicyTypes,
+    tables: dict[str, NDArray[Any]],
+    world_map: WorldMap,
+    points: FloatArray,
+    c0: FloatArray,
+    footprint: float,
+) -> IntArray:
+    """Policies instantiation keeps at each of ``points`` (lattice points, clearance
+    ``c0``): the decisions of :func:`_instantiate` at those points alone (each point's
+    decisions depend on that point only)."""
+    taken = np.zeros((int(types.scale_group.max(initial=-1)) + 1, points.shape[0]), dtype=bool)
+    for size in np.unique(types.start_radii[:, 0])[::-1]:
+        found_t: list[IntArray] = []
+        found_q: list[IntArray] = []
+        undecided_t: list[IntArray] = []
+        undecided_q: list[IntArray] = []
+        placed = (types.start_radii[:, 0] == size) & _placed_types(types)
+        for t in np.flatnonzero(placed):
+            maybe = np.flatnonzero(
+                (c0 >= footprint + tables["sample_first_reach"][t]) & ~taken[types.scale_group[t]]
+            )
+            sure = c0[maybe] >= footprint + tables["type_total_reach"][t]
+            found_q.append(maybe[sure])
+            found_t.append(np.full(int(np.count_nonzero(sure)), t, dtype=np.int64))
+            undecided_q.append(maybe[~sure])
+            undecided_t.append(np.full(int(np.count_nonzero(~sure)), t, dtype=np.int64))
+        ut, uq = np.concatenate(undecided_t), np.concatenate(undecided_q)
+        ok = _check_sweeps(world_map, points, ut, uq, tables, footprint)
+        lt = np.concatenate([*found_t, ut[ok]])
+        lq = np.concatenate([*found_q, uq[ok]])
+        taken[types.scale_group[lt], lq] = True
+    kept: IntArray = taken.sum(axis=0)
+    return kept
+
+
+def lattice_points(world_map: WorldMap, spacing: float) -> int:
+    """Number of instantiation lattice points at ``spacing`` (m) on ``world_map``, by
+    arithmetic (nothing is allocated)."""
+    (x0, y0), (x1, y1) = world_map.bounds
+    nx = math.floor((x1 - x0) / spacing + _LATTICE_EPS) + 1
+    ny = math.floor((y1 - y0) / spacing + _LATTICE_EPS) + 1
+    return int(nx) * int(ny)
+
+
 def _check_memory(
     palette: Palette,
     world_map: WorldMap,
@@ -290,7 +478,22 @@ def _check_memory(
     halving: int,
 ) -> None:
     """Refuse a pass whose library would not fit in ``limit`` bytes (see
-    :func:`build_library`)."""
+    :func:`build_library`): by arithmetic when its lattice alone would not, by the
+    bounds of :func:`estimate_library_size` when they decide, else by
+    :func:`expected_library_size`."""
+    (x0, y0), (x1, y1) = world_map.bounds
+    where = (
+        f"{world_map.source}: one pass at spacing {spacing:g} m (halving {halving}) on "
+        f"this {x1 - x0:g} m × {y1 - y0:g} m map"
+    )
+    todo = "; plan on a smaller map or region of it, use fewer halvings, or raise memory_limit"
+    points = lattice_points(world_map, spacing)
+    if points * LATTICE_POINT_BYTES > limit:
+        raise ConfigError(
+            f"{where} has {points:.3g} lattice points, whose estimate alone needs "
+            f"{points * LATTICE_POINT_BYTES / 2**30:.1f} GiB ({LATTICE_POINT_BYTES} bytes "
+            f"per point), above memory_limit {limit / 2**30:.1f} GiB{todo}"
+        )
     low, high = estimate_library_size(
         palette,
         world_map,
@@ -299,16 +502,26 @@ def _check_memory(
         sweep_step=step,
         speed_clearance=speed_clearance,
     )
-    need = low * POLICY_BYTES
+    if high * POLICY_BYTES <= limit:
+        return
+    need = float(low * POLICY_BYTES)
+    size, amount = f"{low:.3g} to {high:.3g}", "at least"
+    if need <= limit:
+        est = expected_library_size(
+            palette,
+            world_map,
+            spacing,
+            footprint_radius=footprint,
+            sweep_step=step,
+            speed_clearance=speed_clearance,
+        )
+        need = est.upper() * POLICY_BYTES
+        size, amount = f"about {est.expected:.3g} (of {low:.3g} to {high:.3g})", "about"
     if need > limit:
-        (x0, y0), (x1, y1) = world_map.bounds
         raise ConfigError(
-            f"{world_map.source}: one pass at spacing {spacing:g} m (halving {halving}) on "
-            f"this {x1 - x0:g} m × {y1 - y0:g} m map would keep {low:.3g} to {high:.3g} "
-            f"policies, needing at least {need / 2**30:.1f} GiB for the library, its graph "
-            f"and a search ({POLICY_BYTES} bytes per policy), above memory_limit "
-            f"{limit / 2**30:.1f} GiB; plan on a smaller map or region of it, use fewer "
-            "halvings, or raise memory_limit"
+            f"{where} would keep {size} policies, needing {amount} {need / 2**30:.1f} GiB "
+            f"for the library, its graph and a search ({POLICY_BYTES} bytes per policy), "
+            f"above memory_limit {limit / 2**30:.1f} GiB{todo}"
         )
 
 

@@ -218,6 +218,76 @@ def _count_rows_edges(rows: Any, *args: Any) -> int:
 
 
 @njit(cache=True, nogil=True)
+def _count_all_edges(
+    row_type: Any,
+    row_point: Any,
+    nx: Any,
+    ny: Any,
+    pred_ptr: Any,
+    pred_type: Any,
+    succ_ptr: Any,
+    succ_type: Any,
+    off_x: Any,
+    off_y: Any,
+    type_first: Any,
+    lookup: Any,
+) -> int:
+    """E, the edges of the whole graph: what :func:`_successors_of` finds, summed over
+    the rows. With the dense lookup table each row's candidates are probed; without it,
+    the rows of a type and of each of its successor types are merged by point (both
+    point-ascending, and so are the end points of the first), in O(rows of the two)
+    instead of a bisection per candidate."""
+    if lookup.size:
+        buf = np.empty(max(succ_type.size, 1), np.int64)
+        total = 0
+        for r in range(row_type.size):
+            total += _successors_of(
+                r,
+                buf,
+                row_type,
+                row_point,
+                nx,
+                ny,
+                pred_ptr,
+                pred_type,
+                succ_ptr,
+                succ_type,
+                off_x,
+                off_y,
+                type_first,
+                lookup,
+            )
+        return total
+    total = 0
+    for t in range(type_first.size - 1):
+        a0 = type_first[t]
+        a1 = type_first[t + 1]
+        ox = off_x[t]
+        oy = off_y[t]
+        for k in range(succ_ptr[t], succ_ptr[t + 1]):
+            u = succ_type[k]
+            if u == t and ox == 0 and oy == 0:
+                continue  # a row's only match would be itself
+            b = type_first[u]
+            b1 = type_first[u + 1]
+            for r in range(a0, a1):
+                if b >= b1:
+                    break
+                p = row_point[r]
+                py = p // nx
+                ex = p - py * nx + ox
+                ey = py + oy
+                if ex < 0 or ex >= nx or ey < 0 or ey >= ny:
+                    continue
+                e = ey * nx + ex
+                while b < b1 and row_point[b] < e:
+                    b += 1
+                if b < b1 and row_point[b] == e:
+                    total += 1
+    return total
+
+
+@njit(cache=True, nogil=True)
 def _fill_edges(indptr: Any, indices: Any, forward: Any, *args: Any) -> None:
     """Column indices of every row's edges (``forward``), or row indices of every
     column's, ascending, from the forward generator. (One loop per direction, each

@@ -1,7 +1,15 @@
-"""Scenario files: parsing and checks, running a scenario's starts with the hybrid
-controller or the decoupled baseline, summaries and outputs.
+"""Scenario files: parsing and checks, the memory budget, running a scenario's starts
+with the hybrid controller or the decoupled baseline, summaries and outputs.
 """
 
+from gracenav.scenarios.budget import (
+    DEFAULT_MAX_HALVINGS,
+    DEFAULT_MEMORY_LIMIT_GIB,
+    MAX_MEMORY_LIMIT_GIB,
+    MemoryEstimate,
+    choose_halvings,
+    estimate_run_memory,
+)
 from gracenav.scenarios.outputs import (
     summary_dict,
     write_outputs,
@@ -18,24 +26,25 @@ from gracenav.scenarios.runs import (
     ScenarioResult,
 )
 from gracenav.scenarios.spec import (
-    MAX_INSTANTIATIONS,
     PLANNERS,
     PLANT_FACTOR_FIELDS,
     PLANT_FACTOR_RANGE,
     Scenario,
     apply_plant_factors,
     check_scenario,
-    estimate_instantiations,
     load_scenario,
     load_scenario_map,
     parse_scenario,
 )
 
 __all__ = [
-    "MAX_INSTANTIATIONS",
+    "DEFAULT_MAX_HALVINGS",
+    "DEFAULT_MEMORY_LIMIT_GIB",
+    "MAX_MEMORY_LIMIT_GIB",
     "PLANNERS",
     "PLANT_FACTOR_FIELDS",
     "PLANT_FACTOR_RANGE",
+    "MemoryEstimate",
     "PreparedLibrary",
     "RunSummary",
     "Scenario",
@@ -43,7 +52,8 @@ __all__ = [
     "apply_plant_factors",
     "check_scenario",
     "check_task",
-    "estimate_instantiations",
+    "choose_halvings",
+    "estimate_run_memory",
     "library_key",
     "load_scenario",
     "load_scenario_map",

@@ -28,6 +28,7 @@ def summary_dict(result: ScenarioResult) -> dict[str, Any]:
         "plant_param_factors": dict(sc.plant_factors),
         "plant_params": None if result.plant_params is None else result.plant_params.to_dict(),
         "library_size": result.library_size,
+        "library_spacing_m": None if result.library is None else float(result.library.spacing),
         "speed_clearance_s": sc.speed_clearance,
         "graph_edges": result.graph_edges,
         "coverage": _json_value(result.coverage),

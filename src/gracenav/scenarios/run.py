@@ -14,7 +14,13 @@ import numpy as np
 from gracenav.params import BallbotParams
 from gracenav.planning.repair import ObstacleSensing
 from gracenav.scenarios.runs import ScenarioResult, _run_starts
-from gracenav.scenarios.spec import Scenario, apply_plant_factors, check_scenario, load_scenario_map
+from gracenav.scenarios.spec import (
+    Scenario,
+    _check_task_states,
+    apply_plant_factors,
+    check_scenario,
+    load_scenario_map,
+)
 from gracenav.sim import SimulationOptions
 
 __all__ = ["PreparedLibrary", "check_task", "library_key", "prepare_library", "run_scenario"]
@@ -29,10 +35,13 @@ class PreparedLibrary:
     ----------
     key : str
         What the library depends on: the palette's key, the map, the footprint, the
-        halving limit and the library seed (:func:`library_key`).
+        halving limit, the memory budget and the library seed (:func:`library_key`).
     world_map, library, graph
     seconds : float
         Wall time of building the library and the graph (s).
+    max_halvings : int
+        The halvings the library was allowed (``planner.max_halvings``, or chosen within
+        the memory budget by :func:`check_scenario`).
     """
 
     key: str
@@ -40,12 +49,13 @@ class PreparedLibrary:
     library: Any = field(repr=False)
     graph: Any = field(repr=False)
     seconds: float
+    max_halvings: int = 0
 
 
 def library_key(scenario: Scenario, palette: Any) -> str:
     """What a scenario's library depends on, as a string (inputs only, no computed
-    float): palette key, map source, footprint, halving limit, library seed and
-    stopping allowance."""
+    float): palette key, map source, footprint, halving limit (None: chosen within the
+    memory budget, which then counts too), library seed and stopping allowance."""
     src = scenario.map_source
     where = json.dumps(src, sort_keys=True) if isinstance(src, dict) else str(src)
     return json.dumps(
@@ -56,12 +66,15 @@ def library_key(scenario: Scenario, palette: Any) -> str:
             scenario.max_halvings,
             scenario.library_seed,
             repr(scenario.speed_clearance),
+            *([] if scenario.max_halvings is not None else [repr(scenario.memory_limit)]),
         ]
     )
 
 
 def prepare_library(scenario: Scenario, palette: Any | None = None) -> PreparedLibrary:
-    """Check the scenario and build its library and graph.
+    """Check the scenario and build its library and graph, with the halvings
+    :func:`check_scenario` allows within the scenario's memory budget (which takes the
+    place of :func:`~gracenav.library.build_library`'s own, smaller-scoped check).
 
     Raises
     ------
@@ -74,15 +87,16 @@ def prepare_library(scenario: Scenario, palette: Any | None = None) -> PreparedL
 
     palette = palette if palette is not None else load_palette()
     world_map = load_scenario_map(scenario)
-    check_scenario(scenario, world_map, palette)
+    halvings = check_scenario(scenario, world_map, palette)
     t0 = time.perf_counter()
     library = build_library(
         palette,
         world_map,
         footprint_radius=scenario.footprint_radius,
-        max_halvings=scenario.max_halvings,
+        max_halvings=halvings,
         seed=scenario.library_seed,
         speed_clearance=scenario.speed_clearance,
+        memory_limit=None,
     )
     graph = build_graph(library)
     return PreparedLibrary(
@@ -91,6 +105,7 @@ def prepare_library(scenario: Scenario, palette: Any | None = None) -> PreparedL
         library=library,
         graph=graph,
         seconds=time.perf_counter() - t0,
+        max_halvings=halvings,
     )
 
 
@@ -124,16 +139,16 @@ def run_scenario(
         Called after each run.
     prepared : PreparedLibrary, optional
         The library of an earlier :func:`prepare_library` call for the same map,
-        footprint, halvings, library seed and palette (checked by its key); default:
-        built here.
+        footprint, halvings (or memory budget), library seed and palette (checked by its
+        key); default: built here.
 
     Raises
     ------
     ConfigError, PlanningError
         From :func:`check_scenario`, before the library is built.
     ValueError
-        ``prepared`` was built for another map, footprint, palette, library seed or
-        stopping allowance.
+        ``prepared`` was built for another map, footprint, halving limit, memory budget,
+        palette, library seed or stopping allowance.
     """
     from gracenav.execution import HybridController
     from gracenav.palette import load_palette
@@ -148,11 +163,11 @@ def run_scenario(
         prepared = prepare_library(scenario, palette)
     elif prepared.key != library_key(scenario, palette):
         raise ValueError(
-            "prepared library was built for another map, footprint, halving limit, library "
-            "seed, speed clearance or palette than this scenario's"
+            "prepared library was built for another map, footprint, halving limit, memory "
+            "budget, library seed, speed clearance or palette than this scenario's"
         )
-    else:
-        check_scenario(scenario, prepared.world_map, palette)
+    else:  # the memory budget was checked when it was prepared (the key holds it)
+        _check_task_states(scenario, prepared.world_map, palette)
     world_map, library, graph = prepared.world_map, prepared.library, prepared.graph
     options = _execution_options(scenario)
     radius = palette.params.ball_radius  # the controller's: the robot starts where it believes

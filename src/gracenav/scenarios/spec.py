@@ -18,6 +18,13 @@ from gracenav.library import DEFAULT_SPEED_CLEARANCE, MAX_SPEED_CLEARANCE
 from gracenav.params import BallbotParams
 from gracenav.planning.graph import CostCriterion, CostName
 from gracenav.planning.repair import ObstacleSensing
+from gracenav.scenarios.budget import (
+    DEFAULT_MAX_HALVINGS,
+    DEFAULT_MEMORY_LIMIT_GIB,
+    GIB,
+    MAX_MEMORY_LIMIT_GIB,
+    choose_halvings,
+)
 from gracenav.sim import Disturbance, Drag, Push
 from gracenav.sim.plant import PLANT_KINDS, PlantKind
 from gracenav.world.moving import MovingObstacle
@@ -27,7 +34,6 @@ __all__ = [
     "Scenario",
     "apply_plant_factors",
     "check_scenario",
-    "estimate_instantiations",
     "load_scenario",
     "load_scenario_map",
     "parse_scenario",
@@ -46,8 +52,10 @@ class Scenario:
     footprint_radius : float
         (m)
     cost : {"time", "distance"}
-    max_halvings : int
-        Coverage refinement limit for the library.
+    max_halvings : int or None
+        Coverage refinement limit for the library (``planner.max_halvings``); None: the
+        most, up to :data:`~gracenav.scenarios.budget.DEFAULT_MAX_HALVINGS`, that fit
+        ``memory_limit`` (:func:`check_scenario` chooses).
     kind : {"point_to_point", "surveillance"}
     goals : tuple of tuple of float
         One goal for point-to-point, the repeating goals for surveillance.
@@ -85,13 +93,17 @@ class Scenario:
         Obstacles not in the map, learned within ``sensing_range`` (m) of the robot.
     sensing_range : float
         (m), ``robot.sensing_range``.
+    memory_limit : float
+        Memory budget of a run (bytes; ``planner.memory_limit_gib`` in GiB): a library
+        whose estimated peak would exceed it is refused before it is built
+        (:mod:`gracenav.scenarios.budget`).
     """
 
     name: str
     map_source: dict[str, Any] | Path
     footprint_radius: float
     cost: CostName
-    max_halvings: int
+    max_halvings: int | None
     kind: Literal["point_to_point", "surveillance"]
     goals: tuple[tuple[float, ...], ...]
     starts: tuple[tuple[float, ...], ...]
@@ -110,6 +122,7 @@ class Scenario:
     speed_clearance: float = DEFAULT_SPEED_CLEARANCE
     moving_obstacles: tuple[MovingObstacle, ...] = ()
     sensing_range: float = 3.0
+    memory_limit: float = DEFAULT_MEMORY_LIMIT_GIB * GIB
 
 
 _TOP = (
@@ -151,11 +164,6 @@ MAX_PATH_POINTS = 100
 MAX_SIMULATED_TIME_S = 1800.0
 """Budget of simulated time over all runs, max_time × starts (s): 1.8 M control ticks,
 about 250 MB of recorded history and a few minutes of computing."""
-
-MAX_INSTANTIATIONS = 2_000_000
-"""Budget of policy instantiations tried by the library over all halvings (lattice
-points × orientations × palette policies): the 50 m × 50 m office at one pass tries
-1.56 M (≈2 s, ≈330 MiB)."""
 
 MAX_COORDINATE = 1.0e4
 """Largest |entry| of a start or goal state (m, m/s)."""
@@ -233,11 +241,14 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
             "capture",
             "seed",
             "speed_clearance",
+            "memory_limit_gib",
         }
     )
     planner_kind = planner.choice("kind", PLANNERS, "gracenav")
     cost = planner.choice("cost", [c.value for c in CostCriterion], "time")
-    halvings = planner.integer("max_halvings", 1, maximum=20)
+    halvings = (
+        planner.integer("max_halvings", maximum=20) if "max_halvings" in planner.data else None
+    )
     resume = planner.boolean("resume_from_balancing", True)
     capture = planner.boolean("capture", True)
     library_seed = planner.integer("seed", 0, maximum=2**32 - 1)
@@ -247,6 +258,13 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         minimum=0.0,
         maximum=MAX_SPEED_CLEARANCE,
         unit="s",
+    )
+    memory_gib = planner.number(
+        "memory_limit_gib",
+        DEFAULT_MEMORY_LIMIT_GIB,
+        positive=True,
+        maximum=MAX_MEMORY_LIMIT_GIB,
+        unit="GiB",
     )
     sim = top.sub("simulation", {})
     sim.check_keys({"plant", "seed", "position_noise_std", "max_time", "plant_params"})
@@ -339,6 +357,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         capture=capture,
         library_seed=library_seed,
         speed_clearance=speed_clearance,
+        memory_limit=memory_gib * GIB,
     )
 
 
@@ -413,60 +432,53 @@ def load_scenario(path: str | Path) -> Scenario:
     return parse_scenario(data, source=str(path), base=path.parent)
 
 
-def estimate_instantiations(world_map: Any, palette: Any, max_halvings: int) -> tuple[int, int]:
-    """Policy instantiations the library would try with ``max_halvings`` on ``world_map``
-    (lattice points × 4 orientations × palette policies, summed over the spacings
-    d, d/2, ...), and the largest number of halvings within :data:`MAX_INSTANTIATIONS`
-    (−1 if even one pass exceeds it)."""
-    (x0, y0), (x1, y1) = world_map.bounds
-    w, h = x1 - x0, y1 - y0
-    total = 0
-    allowed = -1
-    for k in range(max_halvings + 1):
-        s = palette.d / 2**k
-        total += (math.floor(w / s) + 1) * (math.floor(h / s) + 1) * 4 * len(palette)
-        if total <= MAX_INSTANTIATIONS:
-            allowed = k
-    return total, allowed
+def check_scenario(scenario: Scenario, world_map: Any, palette: Any) -> int:
+    """Check a scenario against its loaded map and the palette before any heavy work,
+    and choose its library's halvings.
 
+    Refuses a library whose estimated peak memory would exceed the scenario's budget
+    (``planner.memory_limit_gib``; :func:`~gracenav.scenarios.budget.choose_halvings`),
+    surveillance loops that cannot fit in ``max_time``, and starts or goals outside the
+    map or in an obstacle.
 
-def check_scenario(scenario: Scenario, world_map: Any, palette: Any) -> None:
-    """Check a scenario against its loaded map and the palette before any heavy work.
-
-    Refuses a library refinement (``max_halvings``) whose instantiations would exceed
-    :data:`MAX_INSTANTIATIONS`, surveillance loops that cannot fit in ``max_time``, and
-    starts or goals outside the map or in an obstacle.
+    Returns
+    -------
+    int
+        The halvings of the library: ``planner.max_halvings``, or without it the most,
+        up to :data:`~gracenav.scenarios.budget.DEFAULT_MAX_HALVINGS`, that fit the
+        budget. (The decoupled baseline builds no library and has no memory check.)
 
     Raises
     ------
     ConfigError
-        For an over-budget scenario; the message gives the estimate and the limit.
+        For an over-budget scenario; the message gives the estimate, the budget and
+        what to do.
     PlanningError
         For a start or goal outside the map or in an obstacle.
     """
+    given = scenario.max_halvings
+    halvings = DEFAULT_MAX_HALVINGS if given is None else given
+    if scenario.planner == "gracenav":
+        halvings = choose_halvings(
+            world_map,
+            palette,
+            max_halvings=given,
+            memory_limit=scenario.memory_limit,
+            footprint_radius=scenario.footprint_radius,
+            speed_clearance=scenario.speed_clearance,
+            source=scenario.source,
+        ).halvings
+    _check_task_states(scenario, world_map, palette)
+    return halvings
+
+
+def _check_task_states(scenario: Scenario, world_map: Any, palette: Any) -> None:
+    """:func:`check_scenario` without the memory budget: surveillance loops within
+    ``max_time``, starts and goals inside the map and clear of obstacles."""
     from gracenav.errors import PlanningError
 
     src = scenario.source
     (x0, y0), (x1, y1) = world_map.bounds
-    w, h = x1 - x0, y1 - y0
-    # The decoupled baseline builds no library: the instantiation budget is gracenav's.
-    total, allowed = (
-        estimate_instantiations(world_map, palette, scenario.max_halvings)
-        if scenario.planner == "gracenav"
-        else (0, scenario.max_halvings)
-    )
-    if total > MAX_INSTANTIATIONS:
-        hint = (
-            f"use planner.max_halvings <= {allowed}"
-            if allowed >= 0
-            else "use a smaller map (even one pass exceeds it)"
-        )
-        raise ConfigError(
-            f"{src}: 'planner.max_halvings' {scenario.max_halvings} on this {w:g} m × {h:g} m "
-            f"map would try about {total:.3g} policy instantiations (lattice spacing down to "
-            f"{100 * palette.d / 2**scenario.max_halvings:.3g} cm), more than the budget of "
-            f"{MAX_INSTANTIATIONS:.0e}; {hint}"
-        )
     if scenario.kind == "surveillance":
         shortest = min(float(p.primitive.duration) for p in palette.policies)
         need = scenario.loops * len(scenario.goals) * shortest
