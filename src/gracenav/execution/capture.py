@@ -248,6 +248,8 @@ def _holds_catch_goals(palette: Palette) -> NDArray[np.bool_]:
     """Per palette policy, whether its S holds the G of every catch and shift of the
     palette placed at its own start (concentric, exact ellipsoid containment)."""
     mats = [p.goal_domain.shape_matrix for p in (*palette.catches, *palette.shifts)]
+    if not mats:
+        return np.ones(len(palette.policies), dtype=bool)
     goals = np.unique(np.array(mats).reshape(len(mats), -1), axis=0).reshape(-1, 4, 4)
     out = np.zeros(len(palette.policies), dtype=bool)
     for i, pol in enumerate(palette.policies):
