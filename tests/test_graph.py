@@ -298,7 +298,7 @@ def test_lattice_edges_generate_the_matrices(monkeypatch: pytest.MonkeyPatch, de
     import gracenav.planning.graph as graph_module
 
     if not dense:
-        monkeypatch.setattr(graph_module, "_DENSE_LOOKUP", 0)
+        monkeypatch.setattr(graph_module, "DENSE_LOOKUP", 0)
     lib = build_library(
         mixed_palette(),
         free_map(3.0, 3.0, [{"rectangle": {"min": [1.2, 1.2], "max": [1.6, 1.7]}}]),
@@ -337,7 +337,7 @@ def test_lookup_modes_give_the_same_graph(monkeypatch: pytest.MonkeyPatch) -> No
         coverage_samples=100,
     )
     dense = build_graph(lib).adjacency
-    monkeypatch.setattr(graph_module, "_DENSE_LOOKUP", 0)
+    monkeypatch.setattr(graph_module, "DENSE_LOOKUP", 0)
     sparse_lookup = build_graph(lib).adjacency
     np.testing.assert_array_equal(dense.indptr, sparse_lookup.indptr)
     np.testing.assert_array_equal(dense.indices, sparse_lookup.indices)
@@ -374,7 +374,7 @@ def test_edge_count_of_the_shipped_palette(
     import gracenav.planning.graph as graph_module
 
     if not dense:
-        monkeypatch.setattr(graph_module, "_DENSE_LOOKUP", 0)
+        monkeypatch.setattr(graph_module, "DENSE_LOOKUP", 0)
     graph = build_graph(box_room_library)
     assert (graph.lattice_edges.table.size > 0) == dense
     e = graph.num_edges

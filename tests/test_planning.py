@@ -320,7 +320,7 @@ def test_trees_on_edges_generated_from_the_lattice_are_the_stored_graphs_trees(
     import gracenav.planning.graph as graph_module
 
     if not dense:
-        monkeypatch.setattr(graph_module, "_DENSE_LOOKUP", 0)
+        monkeypatch.setattr(graph_module, "DENSE_LOOKUP", 0)
     lib, stored = small_library_graph()
     implicit = build_graph(lib)
     trims = lib.trim_indices()
@@ -454,7 +454,7 @@ def test_lazy_tree_closes_rows_at_the_whole_trees_cost_to_go(
     import gracenav.planning.graph as graph_module
 
     if not dense:
-        monkeypatch.setattr(graph_module, "_DENSE_LOOKUP", 0)
+        monkeypatch.setattr(graph_module, "DENSE_LOOKUP", 0)
     lib, stored = small_library_graph()
     implicit = build_graph(lib)
     n = len(lib)

@@ -67,6 +67,7 @@ from gracenav.planning._search import (
 )
 
 __all__ = [
+    "DENSE_LOOKUP",
     "FINE_COST_FACTOR",
     "STORED_EDGES",
     "CostCriterion",
@@ -102,8 +103,11 @@ FINE_COST_FACTOR = 2.0
 
 #: Default absolute tolerance of state continuity (m, m/s, m/s², rad, rad/s).
 DEFAULT_ATOL = 1e-6
-#: Largest (type, point) lookup table (int32 entries) kept with the implicit edges.
-_DENSE_LOOKUP = 1 << 25
+#: Largest (type, point) lookup table (int32 entries: 256 MiB) kept with the implicit
+#: edges; a larger one is left out and a row found by bisection, about 10 times slower
+#: (the 100 m office at d with the fine copies: 35 M entries, 20 s instead of 2 s to
+#: store its reversed graph).
+DENSE_LOOKUP = 1 << 26
 #: Most edges for which :meth:`PreparesGraph.search_form` stores the reversed graph
 #: (12 bytes per edge: 512 MiB).
 STORED_EDGES = (512 << 20) // 12
@@ -185,7 +189,7 @@ class LatticeEdges:
         First library row of each type (rows are in type order).
     table : ndarray of int32, shape (P · T,) or (0,)
         Library row of each (point, type) pair (−1 if none) at point · T + t, when it
-        fits in :data:`_DENSE_LOOKUP` entries; otherwise empty and a row is found by
+        fits in :data:`DENSE_LOOKUP` entries; otherwise empty and a row is found by
         bisection among its type's rows. Point-major: the successors of a policy, all
         at one point, are one contiguous stretch of the table.
     """
@@ -531,7 +535,7 @@ def build_graph(library: PolicyLibrary, *, atol: float = DEFAULT_ATOL) -> Prepar
     cell = library.start_cell
     row_point = np.ascontiguousarray(cell[:, 1] * nx + cell[:, 0], dtype=np.int32)
     type_first = np.searchsorted(row_type, np.arange(n_types + 1)).astype(np.int64)
-    if n_types * n_points <= _DENSE_LOOKUP:
+    if n_types * n_points <= DENSE_LOOKUP:
         table = np.full(n_types * n_points, -1, dtype=np.int32)
         table[row_point.astype(np.int64) * n_types + row_type] = np.arange(
             len(library), dtype=np.int32

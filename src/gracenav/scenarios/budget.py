@@ -9,9 +9,11 @@ given that would not fit is refused, with the largest that would.
 The estimate of a run's peak (bytes) is
 
     RUN_BASE_BYTES + OUTPUT_BYTES + MAP_CELL_BYTES × cells + RUN_POINT_BYTES × P
-    + RUN_POLICY_BYTES × N + STORED_EDGE_BYTES × E
+    + RUN_POLICY_BYTES × N + STORED_EDGE_BYTES × E + 4 × L
 
-with P the lattice points of the last pass, N its policies (the upper figure of
+with L the entries of the graph's (point, type) lookup table, P × T for T palette
+policy types when that is at most :data:`gracenav.planning.graph.DENSE_LOOKUP`, else 0,
+and P the lattice points of the last pass, N its policies (the upper figure of
 :func:`gracenav.library.expected_library_size`: its estimate plus two standard errors)
 and E the edges of the reversed graph the controller stores, ≈
 :data:`STORED_EDGES_PER_POLICY` × N when that is at most
@@ -160,12 +162,19 @@ def estimate_run_memory(
     -------
     MemoryEstimate
     """
-    from gracenav.planning.graph import STORED_EDGES
+    from gracenav.planning.graph import DENSE_LOOKUP, STORED_EDGES
 
     spacing = float(palette.d) / 2**halvings
     points = lattice_points(world_map, spacing)
     cells = int(world_map.occupied.size)
-    fixed = float(RUN_BASE_BYTES + OUTPUT_BYTES + MAP_CELL_BYTES * cells + RUN_POINT_BYTES * points)
+    lookup = points * 4 * len(palette.policies)  # the graph's (point, type) table
+    fixed = float(
+        RUN_BASE_BYTES
+        + OUTPUT_BYTES
+        + MAP_CELL_BYTES * cells
+        + RUN_POINT_BYTES * points
+        + 4 * (lookup if lookup <= DENSE_LOOKUP else 0)
+    )
     if limit is not None and fixed > limit:
         return MemoryEstimate(halvings, spacing, points, None, 0.0, fixed)
     est = expected_library_size(
