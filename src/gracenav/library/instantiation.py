@@ -143,24 +143,22 @@ def _lattice(world_map: WorldMap, spacing: float) -> tuple[FloatArray, int, int,
     return origin, nx, ny, pts
 
 
-def _instantiate(
-    palette: Palette,
+def _choose(
     types: PolicyTypes,
     tables: dict[str, NDArray[Any]],
     world_map: WorldMap,
-    spacing: float,
+    points: FloatArray,
+    c0: FloatArray,
     footprint: float,
-    sweep_step: float,
-) -> PolicyLibrary:
-    origin, nx, ny, points = _lattice(world_map, spacing)
-    c0 = world_map.clearance(points)
-    n_points = points.shape[0]
-    # Start domain sizes from the largest down: a scale group (a policy and its larger
-    # variants at one orientation) takes at each point the largest size that fits, so
-    # a smaller size is only checked where every larger one failed.
-    taken = np.zeros((int(types.scale_group.max(initial=-1)) + 1, n_points), dtype=bool)
-    found_t: list[IntArray] = []
-    found_q: list[IntArray] = []
+) -> tuple[IntArray, IntArray]:
+    """(type, point index) of every policy instantiation keeps at ``points`` (clearance
+    ``c0``), grouped by start domain size from the largest: a scale group (a policy, its
+    larger-domain variants and its fine copies at one orientation) takes at each point
+    the largest size whose swept D' fits, so a smaller size is only checked where every
+    larger one failed."""
+    taken = np.zeros((int(types.scale_group.max(initial=-1)) + 1, points.shape[0]), dtype=bool)
+    found_t: list[IntArray] = [np.zeros(0, dtype=np.int64)]
+    found_q: list[IntArray] = [np.zeros(0, dtype=np.int64)]
     for size in np.unique(types.start_radii[:, 0])[::-1]:
         sure_t: list[IntArray] = []
         sure_q: list[IntArray] = []
@@ -185,8 +183,22 @@ def _instantiate(
         taken[types.scale_group[lt], lq] = True
         found_t.append(lt)
         found_q.append(lq)
-    if found_t:
-        all_t, all_q = np.concatenate(found_t), np.concatenate(found_q)
+    return np.concatenate(found_t).astype(np.int64), np.concatenate(found_q).astype(np.int64)
+
+
+def _instantiate(
+    palette: Palette,
+    types: PolicyTypes,
+    tables: dict[str, NDArray[Any]],
+    world_map: WorldMap,
+    spacing: float,
+    footprint: float,
+    sweep_step: float,
+) -> PolicyLibrary:
+    origin, nx, ny, points = _lattice(world_map, spacing)
+    c0 = world_map.clearance(points)
+    all_t, all_q = _choose(types, tables, world_map, points, c0, footprint)
+    if all_t.size:
         # Type-major, point-ascending order.
         order = np.lexsort((all_q, all_t))
         typ, pt = all_t[order], all_q[order]
@@ -433,28 +445,8 @@ def _kept_per_point(
     """Policies instantiation keeps at each of ``points`` (lattice points, clearance
     ``c0``): the decisions of :func:`_instantiate` at those points alone (each point's
     decisions depend on that point only)."""
-    taken = np.zeros((int(types.scale_group.max(initial=-1)) + 1, points.shape[0]), dtype=bool)
-    for size in np.unique(types.start_radii[:, 0])[::-1]:
-        found_t: list[IntArray] = []
-        found_q: list[IntArray] = []
-        undecided_t: list[IntArray] = []
-        undecided_q: list[IntArray] = []
-        placed = (types.start_radii[:, 0] == size) & _placed_types(types)
-        for t in np.flatnonzero(placed):
-            maybe = np.flatnonzero(
-                (c0 >= footprint + tables["sample_first_reach"][t]) & ~taken[types.scale_group[t]]
-            )
-            sure = c0[maybe] >= footprint + tables["type_total_reach"][t]
-            found_q.append(maybe[sure])
-            found_t.append(np.full(int(np.count_nonzero(sure)), t, dtype=np.int64))
-            undecided_q.append(maybe[~sure])
-            undecided_t.append(np.full(int(np.count_nonzero(~sure)), t, dtype=np.int64))
-        ut, uq = np.concatenate(undecided_t), np.concatenate(undecided_q)
-        ok = _check_sweeps(world_map, points, ut, uq, tables, footprint)
-        lt = np.concatenate([*found_t, ut[ok]])
-        lq = np.concatenate([*found_q, uq[ok]])
-        taken[types.scale_group[lt], lq] = True
-    kept: IntArray = taken.sum(axis=0)
+    _, at = _choose(types, tables, world_map, points, c0, footprint)
+    kept: IntArray = np.bincount(at, minlength=points.shape[0]).astype(np.int64)
     return kept
 
 
