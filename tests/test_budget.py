@@ -102,7 +102,12 @@ def test_build_library_refuses_a_pass_by_its_expected_size(palette: Any, office1
     assert len(lib) == n
     # A lattice whose estimate alone would not fit is refused by arithmetic.
     with pytest.raises(ConfigError, match="49 lattice points"):
-        build_library(palette, load_map({"bounds": [[0, 0], [3, 3]]}), memory_limit=1000)
+        build_library(
+            palette,
+            load_map({"bounds": [[0, 0], [3, 3]]}),
+            memory_limit=1000,
+            coverage_target=0.99,
+        )
 
 
 def test_automatic_halvings_fit_the_budget(palette: Any) -> None:

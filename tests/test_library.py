@@ -362,7 +362,9 @@ def test_coverage_against_brute_force_with_velocities() -> None:
 def test_halving_refines_until_the_target_or_the_limit() -> None:
     pal = palette(policy(rest(), (0.15, 0.15)), policy(cruise_x(), (0.15, 0.15)))
     wmap = free_map(0.0, 0.0, 3.0, 3.0)
-    lib = build_library(pal, wmap, max_halvings=2, coverage_samples=2000)
+    # Just below 1: with a target of 1, which no spacing reaches here (samples by the
+    # walls lie in no start domain), only the last spacing is built (below).
+    lib = build_library(pal, wmap, max_halvings=2, coverage_samples=2000, coverage_target=0.999)
     spacings = [it.spacing for it in lib.iterations]
     assert spacings == [0.5, 0.25, 0.125]
     sizes = [it.size for it in lib.iterations]
@@ -381,6 +383,10 @@ def test_halving_refines_until_the_target_or_the_limit() -> None:
     assert mid.coverage == pytest.approx(covs[1], abs=1e-12)
     once = build_library(pal, wmap, max_halvings=3, coverage_target=0.0, coverage_samples=2000)
     assert len(once.iterations) == 1
+    # A target of 1 out of reach: the last spacing alone, the same library.
+    last = build_library(pal, wmap, max_halvings=2, coverage_samples=2000)
+    assert [it.spacing for it in last.iterations] == [0.125]
+    assert rows(last) == rows(lib) and last.coverage == lib.coverage
 
 
 # -- bad inputs ----------------------------------------------------------------------------

@@ -241,6 +241,30 @@ def max_trim_speed(palette: Palette) -> float:
     return max(speeds, default=0.0)
 
 
+def _out_of_reach(
+    types: PolicyTypes,
+    tables: dict[str, NDArray[Any]],
+    world_map: WorldMap,
+    samples: FloatArray,
+    footprint: float,
+    coverage_target: float,
+) -> bool:
+    """Whether no spacing can reach ``coverage_target``: some coverage sample is too near
+    an obstacle for any start domain to hold it, and the target asks for every one.
+
+    A policy placed at q has clearance(q) >= f + r₀ (r₀ the reach of its first swept
+    sample); its S holds only positions within ρ_S (the radius of S's XY projection) of
+    q, whose clearance is at least clearance(q) − ρ_S (clearance is 1-Lipschitz). So a
+    sample of clearance below f + min(r₀ − ρ_S) over the types lies in no S, whatever
+    the spacing, and coverage stays below 1: the passes before the last would be built
+    and discarded."""
+    if coverage_target < 1.0 or samples.shape[0] == 0:
+        return False
+    placed = _placed_types(types)
+    least = float(np.min((tables["sample_first_reach"] - types.start_xy_radius)[placed]))
+    return bool(np.any(world_map.clearance(samples[:, :2]) < footprint + least))
+
+
 def _placed_types(types: PolicyTypes) -> BoolArray:
     """Types instantiated: all but the orientations k > 0 of a rotation-invariant capture
     regulator (rest reference, round domains), for which one orientation suffices."""
@@ -693,7 +717,10 @@ def build_library(
     :func:`max_trim_speed`), inside at least one start domain S. Points whose
     clearance is below f + (outer position factor − 1) · ρ_S (ρ_S the XY radius of
     S) cannot be covered: no valid start domain reaches them. On maps with walls
-    coverage therefore stays below 1 and a target of 1 uses every halving.
+    coverage therefore stays below 1 and a target of 1 uses every halving; when a
+    coverage sample lies that near an obstacle (for every type) and the target is 1,
+    only the last spacing is built (the others would be discarded), and
+    ``iterations`` has its record alone.
     """
     _check_inputs(
         palette,
@@ -720,7 +747,12 @@ def build_library(
     iterations: list[InstantiationIteration] = []
     library: PolicyLibrary | None = None
     coverage = 0.0
-    for h in range(max_halvings + 1):
+    first = (
+        max_halvings
+        if _out_of_reach(types, tables, world_map, samples, footprint, coverage_target)
+        else 0
+    )
+    for h in range(first, max_halvings + 1):
         t0 = time.perf_counter()
         spacing = palette.d / 2**h
         if memory_limit is not None:
