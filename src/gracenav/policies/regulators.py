@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import replace
 
 from gracenav.control import ControllerGains
@@ -121,22 +121,20 @@ def fine_variants(
         The verified copies, largest first, labelled by :func:`fine_label`.
     """
     options = options if options is not None else VerificationOptions()
-    out: list[MotionPolicy] = []
-    for factor in options.fine_scales:
-        cand = replace(
-            policy,
-            start_radii=policy.start_radii.scaled(factor),
-            goal_radii=policy.goal_radii.scaled(factor),
-            report=None,
-            label=fine_label(policy.primitive.name, factor),
-        )
-        report = verify_placements(cand, options)
-        if progress is not None:
-            progress()
-        if not report.passed:
-            break
-        out.append(replace(cand, report=report))
-    return tuple(out)
+    return _verified_until_one_fails(
+        (
+            replace(
+                policy,
+                start_radii=policy.start_radii.scaled(factor),
+                goal_radii=policy.goal_radii.scaled(factor),
+                report=None,
+                label=fine_label(policy.primitive.name, factor),
+            )
+            for factor in options.fine_scales
+        ),
+        options,
+        progress,
+    )
 
 
 def scaled_variants(
@@ -158,16 +156,31 @@ def scaled_variants(
         The verified variants, ascending in size, labelled by :func:`variant_label`.
     """
     options = options if options is not None else VerificationOptions()
+    return _verified_until_one_fails(
+        (
+            replace(
+                policy,
+                start_radii=policy.goal_radii.scaled(scale),
+                report=None,
+                label=variant_label(policy.primitive.name, scale),
+            )
+            for scale in options.scale_ladder
+            if scale > policy.scale * (1 + 1e-12)
+        ),
+        options,
+        progress,
+    )
+
+
+def _verified_until_one_fails(
+    candidates: Iterable[MotionPolicy],
+    options: VerificationOptions,
+    progress: Callable[[], None] | None,
+) -> tuple[MotionPolicy, ...]:
+    """Verify ``candidates`` in turn at both placements, with their reports, up to the
+    first that fails (left out, and the rest not tried)."""
     out: list[MotionPolicy] = []
-    for scale in options.scale_ladder:
-        if scale <= policy.scale * (1 + 1e-12):
-            continue
-        cand = replace(
-            policy,
-            start_radii=policy.goal_radii.scaled(scale),
-            report=None,
-            label=variant_label(policy.primitive.name, scale),
-        )
+    for cand in candidates:
         report = verify_placements(cand, options)
         if progress is not None:
             progress()
