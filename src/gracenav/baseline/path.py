@@ -7,18 +7,17 @@ the smoothed curve is sampled in arc length (:class:`_Curve`) for the timing.
 
 from __future__ import annotations
 
-import heapq
 import itertools
 import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numba import njit
 from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import BSpline
 
 from gracenav.errors import PlanningError
+from gracenav.world.grid_search import astar_cells
 
 if TYPE_CHECKING:
     from gracenav.world import WorldMap
@@ -35,63 +34,6 @@ jerk is continuous and its snap bounded (a cubic's jerk jumps at every knot)."""
 # --------------------------------------------------------------------------------------
 # 1. Geometric path: A* on the inflated grid
 # --------------------------------------------------------------------------------------
-@njit(cache=True)
-def _astar(free: NDArray[np.bool_], start: int, goal: int) -> NDArray[np.int64]:  # pragma: no cover
-    """Cell indices (row-major) of a shortest 8-connected path, empty if none."""
-    ny, nx = free.shape
-    n = ny * nx
-    g = np.full(n, np.inf)
-    parent = np.full(n, -1, dtype=np.int64)
-    closed = np.zeros(n, dtype=np.bool_)
-    di = np.array([-1, -1, -1, 0, 0, 1, 1, 1])
-    dj = np.array([-1, 0, 1, -1, 1, -1, 0, 1])
-    gi, gj = goal // nx, goal % nx
-    g[start] = 0.0
-    heap = [(0.0, start)]
-    found = False
-    while len(heap) > 0:
-        _, u = heapq.heappop(heap)
-        if closed[u]:
-            continue
-        if u == goal:
-            found = True
-            break
-        closed[u] = True
-        ui, uj = u // nx, u % nx
-        for k in range(8):
-            vi = ui + di[k]
-            vj = uj + dj[k]
-            if vi < 0 or vi >= ny or vj < 0 or vj >= nx or not free[vi, vj]:
-                continue
-            diag = di[k] != 0 and dj[k] != 0
-            if diag and not (free[ui, vj] and free[vi, uj]):
-                continue  # no corner cutting
-            v = vi * nx + vj
-            if closed[v]:
-                continue
-            ng = g[u] + (1.4142135623730951 if diag else 1.0)
-            if ng < g[v]:
-                g[v] = ng
-                parent[v] = u
-                dx = abs(vj - gj)
-                dy = abs(vi - gi)
-                h = dx + dy + (1.4142135623730951 - 2.0) * min(dx, dy)
-                heapq.heappush(heap, (ng + h, v))
-    if not found:
-        return np.zeros(0, dtype=np.int64)
-    count = 1
-    u = goal
-    while u != start:
-        u = parent[u]
-        count += 1
-    out = np.empty(count, dtype=np.int64)
-    u = goal
-    for k in range(count - 1, -1, -1):
-        out[k] = u
-        u = parent[u]
-    return out
-
-
 def _nearest_free(world_map: WorldMap, free: NDArray[np.bool_], p: FloatArray) -> int:
     """Row-major index of the free cell nearest to ``p`` (−1 if none)."""
     idx = np.flatnonzero(free)
@@ -138,7 +80,7 @@ def grid_path(
             f"no cell of the map keeps {clearance:g} m from obstacles and the map edge: "
             "the robot does not fit; use a smaller footprint or safety margin"
         )
-    cells = _astar(free, s, g)
+    cells = astar_cells(free, s, g)
     if cells.size == 0:
         raise PlanningError(
             f"the goal ({p1[0]:g}, {p1[1]:g}) cannot be reached from ({p0[0]:g}, {p0[1]:g}) "

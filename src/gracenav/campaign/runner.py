@@ -78,7 +78,10 @@ def _pair_check(campaign: Campaign) -> PairCheck:
     from gracenav.scenarios import check_task, parse_scenario
 
     doc = trial_scenario(campaign, {"sim_seed": 0, "noise_std_m": 0.0})
-    base = parse_scenario(doc, source=f"{campaign.name} scenario")
+    # Any pair is checked against one library: the whole map's, not a task's region.
+    base = dataclasses.replace(
+        parse_scenario(doc, source=f"{campaign.name} scenario"), region="map"
+    )
     prepared = _prepared(base)
 
     def accept(start: list[float], goal: list[float]) -> bool:

@@ -101,6 +101,9 @@ def _execute(
             written = write_outputs(result, staging.staging, animation=animation)
     written = [out / p.name for p in written]
     spacing = "" if result.library is None else f" (lattice spacing {result.library.spacing:g} m)"
+    if result.library is not None and result.library.world_map is not result.world_map:
+        (x0, y0), (x1, y1) = result.library.world_map.bounds
+        spacing += f" on the task's region {x1 - x0:g} m × {y1 - y0:g} m"
     print(
         f"library: {result.library_size} policies{spacing}, {result.graph_edges} edges, "
         f"coverage {100 * result.coverage:.1f} %, built in {1000 * result.library_seconds:.0f} ms"

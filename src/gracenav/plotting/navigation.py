@@ -18,14 +18,32 @@ __all__ = ["animate_episode", "draw_map", "outer_domain_outline", "plot_lean", "
 _GIF_COLOURS = 64  # palette of the animation: white, black, greys and a few line colours
 
 
+_MAP_PIXELS = 1024
+"""Most map cells drawn along a side: a larger grid is drawn in blocks of k × k cells, a
+block black when any of its cells is (no obstacle vanishes from the figure)."""
+
+
 def draw_map(ax: Any, world_map: Any) -> None:
     """Draw the map's bounds and obstacles (black) on ``ax``."""
     (x0, y0), (x1, y1) = world_map.bounds
-    occ = np.asarray(world_map.occupied, dtype=float)
+    grid = np.asarray(world_map.occupied, dtype=bool)
+    extent = (x0, x1, y0, y1)
+    k = -(-max(grid.shape) // _MAP_PIXELS)
+    if k > 1:
+        ny, nx = grid.shape
+        padded = np.zeros((-(-ny // k) * k, -(-nx // k) * k), dtype=bool)
+        padded[:ny, :nx] = grid
+        blocks = padded.reshape(padded.shape[0] // k, k, padded.shape[1] // k, k)
+        grid = np.asarray(blocks.any(axis=(1, 3)))
+        # The padding lies beyond the map (cut off by the limits): the image spans
+        # whole blocks.
+        side = k * world_map.resolution
+        extent = (x0, x0 + grid.shape[1] * side, y0, y0 + grid.shape[0] * side)
+    occ = grid.astype(np.float32)
     ax.imshow(
         np.ma.masked_where(occ == 0, occ),
         origin="lower",
-        extent=(x0, x1, y0, y1),
+        extent=extent,
         cmap="Greys",
         vmin=0.0,
         vmax=1.0,

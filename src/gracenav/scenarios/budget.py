@@ -136,6 +136,7 @@ def estimate_run_memory(
     footprint_radius: float = 0.2,
     speed_clearance: float = DEFAULT_SPEED_CLEARANCE,
     limit: float | None = None,
+    whole_map: Any = None,
 ) -> MemoryEstimate:
     """Estimate the peak resident memory (bytes) of running a scenario on ``world_map``
     whose library refines the lattice ``halvings`` times (see the module docstring).
@@ -157,6 +158,9 @@ def estimate_run_memory(
     limit : float, optional
         Bytes of the budget: when the lattice and the rest alone exceed it, the
         policies are not estimated (:attr:`MemoryEstimate.policies` is None).
+    whole_map : WorldMap, optional
+        The map the run is measured on, when ``world_map`` is a region of it that the
+        library is built on (:mod:`gracenav.scenarios.region`): its cells count too.
 
     Returns
     -------
@@ -167,6 +171,8 @@ def estimate_run_memory(
     spacing = float(palette.d) / 2**halvings
     points = lattice_points(world_map, spacing)
     cells = int(world_map.occupied.size)
+    if whole_map is not None and whole_map is not world_map:
+        cells += int(whole_map.occupied.size)
     lookup = points * 4 * len(palette.policies)  # the graph's (point, type) table
     fixed = float(
         RUN_BASE_BYTES
@@ -201,6 +207,7 @@ def choose_halvings(
     speed_clearance: float = DEFAULT_SPEED_CLEARANCE,
     source: str = "scenario",
     keys: tuple[str, str] = ("planner.max_halvings", "planner.memory_limit_gib"),
+    whole_map: Any = None,
 ) -> MemoryEstimate:
     """The halvings of a library that fit ``memory_limit`` bytes, with their estimate.
 
@@ -219,6 +226,8 @@ def choose_halvings(
     keys : (str, str)
         How the messages name the halvings and the budget settings: the scenario keys,
         or command-line options (``--max-halvings``, ``--memory-limit-gib``).
+    whole_map : WorldMap, optional
+        As :func:`estimate_run_memory`.
 
     Raises
     ------
@@ -241,6 +250,7 @@ def choose_halvings(
             footprint_radius=footprint_radius,
             speed_clearance=speed_clearance,
             limit=memory_limit,
+            whole_map=whole_map,
         )
         if est.bytes <= memory_limit:
             if first is None or max_halvings is None:

@@ -29,11 +29,25 @@ def summary_dict(result: ScenarioResult) -> dict[str, Any]:
         "plant_params": None if result.plant_params is None else result.plant_params.to_dict(),
         "library_size": result.library_size,
         "library_spacing_m": None if result.library is None else float(result.library.spacing),
+        "library_region": _region(result),
         "speed_clearance_s": sc.speed_clearance,
         "graph_edges": result.graph_edges,
         "coverage": _json_value(result.coverage),
         "library_and_graph_s": result.library_seconds,
         "runs": [r.to_dict() for r in result.runs],
+    }
+
+
+def _region(result: ScenarioResult) -> dict[str, Any] | None:
+    """Where the library was built: the whole map or the task's region, with its bounds
+    (m); None without a library (the decoupled baseline)."""
+    if result.library is None:
+        return None
+    lib_map = result.library.world_map
+    (x0, y0), (x1, y1) = lib_map.bounds
+    return {
+        "kind": "map" if lib_map is result.world_map else "task",
+        "bounds_m": [[x0, y0], [x1, y1]],
     }
 
 

@@ -3,19 +3,23 @@ controller (or the decoupled baseline, :mod:`gracenav.scenarios.decoupled`)."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
+from gracenav.errors import PlanningError
 from gracenav.params import BallbotParams
 from gracenav.planning.repair import ObstacleSensing
+from gracenav.scenarios.region import resolve_region, task_region, task_waypoints
 from gracenav.scenarios.runs import ScenarioResult, _run_starts
 from gracenav.scenarios.spec import (
     Scenario,
+    _check_task_bounds,
     _check_task_states,
     apply_plant_factors,
     check_scenario,
@@ -42,6 +46,11 @@ class PreparedLibrary:
     max_halvings : int
         The halvings the library was allowed (``planner.max_halvings``, or chosen within
         the memory budget by :func:`check_scenario`).
+    region : {"map", "task"}
+        Where the library was built (``planner.region`` resolved on the map,
+        :mod:`gracenav.scenarios.region`); the library's own ``world_map`` is then the
+        task's region, while ``world_map`` stays the whole map (what the runs are
+        measured against).
     """
 
     key: str
@@ -50,16 +59,22 @@ class PreparedLibrary:
     graph: Any = field(repr=False)
     seconds: float
     max_halvings: int = 0
+    region: Literal["map", "task"] = "map"
 
 
 def library_key(scenario: Scenario, palette: Any) -> str:
     """What a scenario's library depends on, as a string (inputs only, no computed
     float): palette key, map source, footprint, halving limit (None: chosen within the
-    memory budget, which then counts too), library seed and stopping allowance."""
+    memory budget, which then counts too), library seed, stopping allowance and region
+    (with the task's positions and the margin unless it is the whole map)."""
     src = scenario.map_source
     where = json.dumps(src, sort_keys=True) if isinstance(src, dict) else str(src)
+    region: list[Any] = [scenario.region]
+    if scenario.region != "map":
+        region += [repr(scenario.region_margin), task_waypoints(scenario).tolist()]
     return json.dumps(
         [
+            *region,
             palette.key,
             where,
             repr(scenario.footprint_radius),
@@ -87,11 +102,26 @@ def prepare_library(scenario: Scenario, palette: Any | None = None) -> PreparedL
 
     palette = palette if palette is not None else load_palette()
     world_map = load_scenario_map(scenario)
-    halvings = check_scenario(scenario, world_map, palette)
+    region: Literal["map", "task"] = resolve_region(scenario, world_map)
+    where = world_map
+    if region == "task":
+        _check_task_bounds(scenario, world_map)
+        found = task_region(
+            world_map,
+            task_waypoints(scenario),
+            footprint_radius=scenario.footprint_radius,
+            margin=scenario.region_margin,
+            d=palette.d,
+        )
+        # No path through the task: the whole map's checks say why.
+        where, region = (world_map, "map") if found is None else (found, "task")
+    # Within the region the checks see what they see in the whole map: its edge is at
+    # least region_margin >= footprint + 1 m from every start and goal.
+    halvings = check_scenario(scenario, where, palette, whole_map=world_map)
     t0 = time.perf_counter()
     library = build_library(
         palette,
-        world_map,
+        where,
         footprint_radius=scenario.footprint_radius,
         max_halvings=halvings,
         seed=scenario.library_seed,
@@ -106,6 +136,7 @@ def prepare_library(scenario: Scenario, palette: Any | None = None) -> PreparedL
         graph=graph,
         seconds=time.perf_counter() - t0,
         max_halvings=halvings,
+        region=region,
     )
 
 
@@ -168,11 +199,10 @@ def run_scenario(
         )
     else:  # the memory budget was checked when it was prepared (the key holds it)
         _check_task_states(scenario, prepared.world_map, palette)
-    world_map, library, graph = prepared.world_map, prepared.library, prepared.graph
     options = _execution_options(scenario)
+    prepared = _checked(scenario, prepared, palette, options)
+    world_map, library, graph = prepared.world_map, prepared.library, prepared.graph
     radius = palette.params.ball_radius  # the controller's: the robot starts where it believes
-    probe = HybridController(library, graph, criterion=scenario.cost)
-    _check_task(scenario, probe, options)
 
     def run(x0: np.ndarray) -> Any:
         hc = HybridController(library, graph, criterion=scenario.cost)
@@ -201,6 +231,36 @@ def run_scenario(
         library=library,
         plant_params=plant_params,
     )
+
+
+def _checked(
+    scenario: Scenario, prepared: PreparedLibrary, palette: Any, options: Any
+) -> PreparedLibrary:
+    """``prepared`` once the task is checked possible with it (:func:`_check_task`); a
+    task impossible in its region under ``planner.region: auto`` is prepared and
+    checked again on the whole map, whose library is returned.
+
+    Raises
+    ------
+    PlanningError
+        For a task the library (the whole map's, for ``auto``) cannot do.
+    """
+    try:
+        _check_task(scenario, _probe(prepared, scenario), options)
+    except PlanningError:
+        if not (prepared.region == "task" and scenario.region == "auto"):
+            raise
+        # A route the region leaves out: the whole map decides.
+        prepared = prepare_library(dataclasses.replace(scenario, region="map"), palette)
+        _check_task(scenario, _probe(prepared, scenario), options)
+    return prepared
+
+
+def _probe(prepared: PreparedLibrary, scenario: Scenario) -> Any:
+    """A controller on the prepared library to check the task with."""
+    from gracenav.execution import HybridController
+
+    return HybridController(prepared.library, prepared.graph, criterion=scenario.cost)
 
 
 def _execution_options(scenario: Scenario) -> Any:

@@ -25,6 +25,7 @@ from gracenav.scenarios.budget import (
     MAX_MEMORY_LIMIT_GIB,
     choose_halvings,
 )
+from gracenav.scenarios.region import DEFAULT_REGION_MARGIN, REGIONS
 from gracenav.sim import Disturbance, Drag, Push
 from gracenav.sim.plant import PLANT_KINDS, PlantKind
 from gracenav.world.moving import MovingObstacle
@@ -97,6 +98,14 @@ class Scenario:
         Memory budget of a run (bytes; ``planner.memory_limit_gib`` in GiB): a library
         whose estimated peak would exceed it is refused before it is built
         (:mod:`gracenav.scenarios.budget`).
+    region : {"auto", "map", "task"}
+        ``planner.region``: where the library is built: the whole map, the task's region
+        (within ``region_margin`` of the footprint's shortest paths through the task),
+        or ``auto``: the task's region on maps larger than
+        :data:`~gracenav.scenarios.region.AUTO_REGION_AREA`, falling back to the whole
+        map when the task is impossible in it (:mod:`gracenav.scenarios.region`).
+    region_margin : float
+        ``planner.region_margin`` (m).
     """
 
     name: str
@@ -123,6 +132,8 @@ class Scenario:
     moving_obstacles: tuple[MovingObstacle, ...] = ()
     sensing_range: float = 3.0
     memory_limit: float = DEFAULT_MEMORY_LIMIT_GIB * GIB
+    region: Literal["auto", "map", "task"] = "auto"
+    region_margin: float = DEFAULT_REGION_MARGIN
 
 
 _TOP = (
@@ -176,6 +187,11 @@ MAX_DRAG_SPEED_MPS = 10.0
 
 MAX_FOOTPRINT_M = 5.0
 """Largest footprint radius (m)."""
+
+MIN_REGION_MARGIN = 1.0
+"""Smallest ``planner.region_margin`` (m): more than the footprint and a push's stopping
+distance, so that checks at the task's positions and catches near the path see the
+region as they would see the whole map."""
 
 MAX_NOISE_STD_M = 1.0
 """Largest position noise standard deviation (m)."""
@@ -242,6 +258,8 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
             "seed",
             "speed_clearance",
             "memory_limit_gib",
+            "region",
+            "region_margin",
         }
     )
     planner_kind = planner.choice("kind", PLANNERS, "gracenav")
@@ -266,6 +284,20 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         maximum=MAX_MEMORY_LIMIT_GIB,
         unit="GiB",
     )
+    region = planner.choice("region", REGIONS, "auto")
+    region_margin = planner.number(
+        "region_margin",
+        DEFAULT_REGION_MARGIN,
+        positive=True,
+        maximum=MAX_COORDINATE,
+        unit="m",
+    )
+    if region_margin < footprint + MIN_REGION_MARGIN:
+        raise planner.fail(
+            f"'planner.region_margin' {region_margin:g} m must be at least the footprint "
+            f"radius plus {MIN_REGION_MARGIN:g} m ({footprint + MIN_REGION_MARGIN:g} m): the "
+            "region must hold the robot and its catches around the path"
+        )
     sim = top.sub("simulation", {})
     sim.check_keys({"plant", "seed", "position_noise_std", "max_time", "plant_params"})
     plant = sim.choice("plant", PLANT_KINDS, "model3d")
@@ -358,6 +390,8 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         library_seed=library_seed,
         speed_clearance=speed_clearance,
         memory_limit=memory_gib * GIB,
+        region=region,  # type: ignore[arg-type]
+        region_margin=region_margin,
     )
 
 
@@ -432,7 +466,9 @@ def load_scenario(path: str | Path) -> Scenario:
     return parse_scenario(data, source=str(path), base=path.parent)
 
 
-def check_scenario(scenario: Scenario, world_map: Any, palette: Any) -> int:
+def check_scenario(
+    scenario: Scenario, world_map: Any, palette: Any, *, whole_map: Any = None
+) -> int:
     """Check a scenario against its loaded map and the palette before any heavy work,
     and choose its library's halvings.
 
@@ -440,6 +476,10 @@ def check_scenario(scenario: Scenario, world_map: Any, palette: Any) -> int:
     (``planner.memory_limit_gib``; :func:`~gracenav.scenarios.budget.choose_halvings`),
     surveillance loops that cannot fit in ``max_time``, and starts or goals outside the
     map or in an obstacle.
+
+    ``world_map`` is the map the library is built on; ``whole_map``, when that is a
+    region of it (:mod:`gracenav.scenarios.region`), the map whose cells the run holds
+    too.
 
     Returns
     -------
@@ -467,6 +507,7 @@ def check_scenario(scenario: Scenario, world_map: Any, palette: Any) -> int:
             footprint_radius=scenario.footprint_radius,
             speed_clearance=scenario.speed_clearance,
             source=scenario.source,
+            whole_map=whole_map,
         ).halvings
     _check_task_states(scenario, world_map, palette)
     return halvings
@@ -478,7 +519,6 @@ def _check_task_states(scenario: Scenario, world_map: Any, palette: Any) -> None
     from gracenav.errors import PlanningError
 
     src = scenario.source
-    (x0, y0), (x1, y1) = world_map.bounds
     if scenario.kind == "surveillance":
         shortest = min(float(p.primitive.duration) for p in palette.policies)
         need = scenario.loops * len(scenario.goals) * shortest
@@ -491,6 +531,18 @@ def _check_task_states(scenario: Scenario, world_map: Any, palette: Any) -> None
                 f"simulation.max_time = {scenario.max_time:g} s; {hint}"
             )
     footprint = scenario.footprint_radius
+    for key, state in _task_states(scenario):
+        x, y = state[0], state[1]
+        _check_inside(scenario, world_map, key, x, y)
+        if float(world_map.clearance(np.array([[x, y]]))[0]) < footprint:
+            raise PlanningError(
+                f"{src}: '{key}' ({x:g}, {y:g}) is inside an obstacle or closer to one (or "
+                f"to the map edge) than the robot's footprint radius {footprint:g} m"
+            )
+
+
+def _task_states(scenario: Scenario) -> list[tuple[str, tuple[float, ...]]]:
+    """The task's starts and goals with their keys."""
     named = [(f"task.starts[{i}]", s) for i, s in enumerate(scenario.starts)]
     if scenario.kind == "surveillance":
         named = [("task.start", scenario.starts[0])]
@@ -498,18 +550,24 @@ def _check_task_states(scenario: Scenario, world_map: Any, palette: Any) -> None
         ("task.goal" if scenario.kind == "point_to_point" else f"task.goals[{i}]", g)
         for i, g in enumerate(scenario.goals)
     ]
-    for key, state in named:
-        x, y = state[0], state[1]
-        if not (x0 <= x <= x1 and y0 <= y <= y1):
-            raise PlanningError(
-                f"{src}: '{key}' ({x:g}, {y:g}) is outside the map [{x0:g}, {x1:g}] × "
-                f"[{y0:g}, {y1:g}]"
-            )
-        if float(world_map.clearance(np.array([[x, y]]))[0]) < footprint:
-            raise PlanningError(
-                f"{src}: '{key}' ({x:g}, {y:g}) is inside an obstacle or closer to one (or "
-                f"to the map edge) than the robot's footprint radius {footprint:g} m"
-            )
+    return named
+
+
+def _check_inside(scenario: Scenario, world_map: Any, key: str, x: float, y: float) -> None:
+    from gracenav.errors import PlanningError
+
+    (x0, y0), (x1, y1) = world_map.bounds
+    if not (x0 <= x <= x1 and y0 <= y <= y1):
+        raise PlanningError(
+            f"{scenario.source}: '{key}' ({x:g}, {y:g}) is outside the map [{x0:g}, {x1:g}] × "
+            f"[{y0:g}, {y1:g}]"
+        )
+
+
+def _check_task_bounds(scenario: Scenario, world_map: Any) -> None:
+    """The task's starts and goals inside the map (nothing computed on the grid)."""
+    for key, state in _task_states(scenario):
+        _check_inside(scenario, world_map, key, state[0], state[1])
 
 
 def load_scenario_map(scenario: Scenario) -> Any:

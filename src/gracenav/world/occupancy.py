@@ -273,6 +273,60 @@ class WorldMap:
             )
         return cls(b[0].copy(), res, occupied, name=name, source=source, shapes=shapes)
 
+    def window(self, rows: slice, cols: slice, *, keep: BoolArray | None = None) -> WorldMap:
+        """The part of the map made of the cells ``occupied[rows, cols]``, as a map of its
+        own; cells where ``keep`` is False are occupied in it.
+
+        Its edge is an obstacle like any map's, so its clearance is never larger than the
+        whole map's: a path or policy clear in the window is clear in the map.
+
+        Parameters
+        ----------
+        rows, cols : slice
+            Cell rows (along y) and columns (along x), with step 1 and inside the grid.
+        keep : ndarray of bool, shape (rows, cols), optional
+            Cells of the window that keep the map's occupancy; the others become
+            occupied (not unknown). Default: all.
+
+        Returns
+        -------
+        WorldMap
+            Same resolution and source, origin at the window's lower-left corner, named
+            after this map; ``shapes`` is None.
+
+        Raises
+        ------
+        MapError
+            For an empty window, a step other than 1 or a ``keep`` of another shape.
+        """
+        ny, nx = self.grid_shape
+        r0, r1, rs = rows.indices(ny)
+        c0, c1, cs = cols.indices(nx)
+        if rs != 1 or cs != 1 or r1 <= r0 or c1 <= c0:
+            raise MapError(
+                f"{self.source}: a window needs non-empty row and column ranges with step 1, "
+                f"got rows {rows} and columns {cols} of a {ny} × {nx} grid"
+            )
+        occupied = self.occupied[r0:r1, c0:c1]
+        if keep is not None:
+            mask = np.asarray(keep, dtype=bool)
+            if mask.shape != occupied.shape:
+                raise MapError(
+                    f"{self.source}: window keep mask {mask.shape} must match the window "
+                    f"{occupied.shape}"
+                )
+            occupied = occupied | ~mask
+        unknown = None if self.unknown is None else self.unknown[r0:r1, c0:c1]
+        origin = self.origin + self.resolution * np.array([c0, r0], dtype=float)
+        return WorldMap(
+            origin,
+            self.resolution,
+            occupied,
+            name=f"{self.name} [{c0}:{c1}, {r0}:{r1}]",
+            source=self.source,
+            unknown=unknown,
+        )
+
     # -- geometry -----------------------------------------------------------------------
 
     @property
