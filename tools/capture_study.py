@@ -1,4 +1,4 @@
-"""Measurements for capture policies and scaled domains (``docs/design.md``, "Capture
+"""Measurements for capture policies and scaled domains (``docs/design/capture-measurements.md``, "Capture
 policies and scaled domains: measurements").
 
 Every number of that section comes from one subcommand of this script, run on the
