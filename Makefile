@@ -11,6 +11,7 @@ PY := $(VENV)/bin/python
 CONSTRAINTS ?= requirements/lock.txt
 export OPENBLAS_NUM_THREADS := 1
 export MPLBACKEND := Agg
+export NO_MKDOCS_2_WARNING := 1
 # The lock also pins what pip builds the project with (setuptools in the isolated build).
 ifneq ($(CONSTRAINTS),)
 export PIP_CONSTRAINT := $(abspath $(CONSTRAINTS))
