@@ -440,3 +440,13 @@ def test_make_targets_and_extras_shown_exist() -> None:
     ]
     named = [m for p in PAGES for m in re.findall(r"gracenav\[(\w+)\]", p.read_text())]
     assert named and set(named) <= set(extras), (named, sorted(extras))
+
+
+def test_readme_headline_figures_are_those_of_the_benchmarks_page() -> None:
+    readme = (ROOT / "README.md").read_text()
+    section = readme.split("\n## Headline figures\n", 1)[1].split("\n## ", 1)[0]
+    rows = [line for line in section.splitlines() if line.startswith("| ")]
+    assert len(rows) >= 5
+    benchmarks = (DOCS / "benchmarks.md").read_text()
+    for row in rows:
+        assert row in benchmarks, row
