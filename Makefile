@@ -2,6 +2,7 @@
 #   make demo   -- set up a virtual environment and run the main job
 #   make test   -- set up and run the whole test suite, lint and type checks
 #   make test-fast -- lint and the suite without the tests marked slow (under 2 minutes)
+#   make docs   -- build the documentation site into site/
 # Installs take every version from requirements/lock.txt (see `make lock`).
 # `make test VENV=.venv-latest CONSTRAINTS=` runs the suite on the newest versions instead.
 PYTHON ?= python3
@@ -10,12 +11,13 @@ PY := $(VENV)/bin/python
 CONSTRAINTS ?= requirements/lock.txt
 export OPENBLAS_NUM_THREADS := 1
 export MPLBACKEND := Agg
+export NO_MKDOCS_2_WARNING := 1
 # The lock also pins what pip builds the project with (setuptools in the isolated build).
 ifneq ($(CONSTRAINTS),)
 export PIP_CONSTRAINT := $(abspath $(CONSTRAINTS))
 endif
 
-.PHONY: demo test test-fast setup setup-test lint typecheck bench lock clean
+.PHONY: demo test test-fast setup setup-test lint typecheck docs bench lock clean
 
 $(VENV)/.installed: pyproject.toml $(CONSTRAINTS)
 	$(PYTHON) -m venv $(VENV)
@@ -40,7 +42,11 @@ lint: setup-test
 typecheck: setup-test
 	$(PY) -m mypy
 
-test: lint typecheck
+# The site, strictly: a broken link or a missing API reference fails the build.
+docs: setup-test
+	$(PY) -m mkdocs build --strict --site-dir site
+
+test: lint typecheck docs
 	$(PY) -m pytest -q
 
 # While developing: the tests marked slow (pytest -m slow) are left out.
@@ -60,7 +66,7 @@ lock:
 	rm -rf .venv-lock
 	env -u PIP_CONSTRAINT $(PYTHON) -m venv .venv-lock
 	env -u PIP_CONSTRAINT .venv-lock/bin/python -m pip install --quiet --upgrade pip setuptools
-	env -u PIP_CONSTRAINT .venv-lock/bin/python -m pip install --quiet ".[test,mujoco,bench]"
+	env -u PIP_CONSTRAINT .venv-lock/bin/python -m pip install --quiet ".[test,docs,mujoco,bench]"
 	mkdir -p requirements
 	{ echo "# Every package the Makefile installs, pinned; regenerate with 'make lock'."; \
 	  echo "# Resolved on $$(date -u +%Y-%m-%d) with $$(.venv-lock/bin/python --version)."; \
@@ -69,4 +75,4 @@ lock:
 	rm -rf .venv-lock
 
 clean:
-	rm -rf $(VENV) .venv-latest .venv-lock out .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) .venv-latest .venv-lock out site .pytest_cache .mypy_cache .ruff_cache

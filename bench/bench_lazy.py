@@ -45,7 +45,7 @@ from gracenav.library import PolicyLibrary, build_library
 from gracenav.planning import LazyPolicyTree, plan_path, plan_tree
 from gracenav.planning.graph import PreparesGraph, build_graph
 
-SIGMA = 0.05  # m/s, the push model of docs/design.md
+SIGMA = 0.05  # m/s, the push model of docs/design/memory.md
 
 
 def captured(lib: PolicyLibrary, state: np.ndarray) -> np.ndarray:

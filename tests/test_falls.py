@@ -42,7 +42,7 @@ def recovers(lean_deg: float = 0.0, push: tuple[float, float] | None = None) -> 
 
 
 def test_documented_lean_bound() -> None:
-    # docs/design.md: recovery from initial leans up to 20.4° in both planes.
+    # docs/design/conventions.md: recovery from initial leans up to 20.4° in both planes.
     assert recovers(lean_deg=20.3)
     assert not recovers(lean_deg=20.5)
     assert DEFAULT_FALL_LEAN == pytest.approx(np.deg2rad(20.0), rel=0, abs=1e-15)

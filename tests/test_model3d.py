@@ -37,7 +37,7 @@ def random_states(rng: np.random.Generator, n: int, lean: float = 0.6) -> tuple[
     return q, qd
 
 
-# --- independent world-frame kinematics straight from docs/design.md ------------------
+# --- independent world-frame kinematics straight from docs/design/conventions.md ------------------
 def rot_x(a: Any) -> Any:
     c, s = np.cos(a), np.sin(a)
     return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
@@ -418,7 +418,7 @@ def test_kane_equations_from_world_frame_kinematics() -> None:
 # --- (g) the physical drive torque ------------------------------------------------------
 def test_drive_torque_power_identity() -> None:
     """τ_w = (−τ_y, τ_x, τ_y tan(φ_x/2)) on the ball (reaction on the body) has power
-    τ_w·(ω_w − ω_b) = τ_x θ̇_x + τ_y θ̇_y for all rates (docs/design.md)."""
+    τ_w·(ω_w − ω_b) = τ_x θ̇_x + τ_y θ̇_y for all rates (docs/design/conventions.md)."""
     rng = np.random.default_rng(9)
     q, qd = random_states(rng, 100, lean=1.5)
     tau = rng.uniform(-60, 60, (100, 2))

@@ -1,5 +1,5 @@
-"""Measurements for capture policies and scaled domains (``docs/design.md``, "Capture
-policies and scaled domains: measurements").
+"""Measurements for capture policies and scaled domains
+(``docs/design/capture-measurements.md``).
 
 Every number of that section comes from one subcommand of this script, run on the
 3D model through the compiled closed loop (:func:`gracenav.sim.simulate_batch`)

@@ -2,7 +2,7 @@
 
 A collision-free geometric path is planned first, then timed, then tracked; the
 planner knows nothing of the robot's dynamics beyond speed, acceleration and jerk
-limits, and nothing is verified. The pipeline (``docs/design.md``, *Decoupled
+limits, and nothing is verified. The pipeline (``docs/design/baseline.md``, *Decoupled
 baseline*):
 
 1. **Geometric path.** A* (8-connected, octile heuristic, no corner cutting) on the

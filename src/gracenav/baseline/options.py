@@ -18,7 +18,7 @@ __all__ = ["DecoupledOptions", "MotionLimits", "motion_limits"]
 
 @dataclass(frozen=True)
 class DecoupledOptions:
-    """Options of the decoupled baseline (tuned values, see ``docs/design.md``).
+    """Options of the decoupled baseline (tuned values, see ``docs/design/baseline.md``).
 
     Parameters
     ----------

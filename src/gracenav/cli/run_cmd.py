@@ -35,7 +35,7 @@ def register(sub: Any) -> None:
             "and the command exits with status 1. "
             "The scenario's simulation.plant_params factors scale the simulated robot's "
             "parameters (the --params file's if given). "
-            "The scenario format is described in README.md."
+            "The scenario format is described in docs/scenarios.md."
         ),
     )
     r.add_argument("scenario", type=Path, help="scenario YAML file")

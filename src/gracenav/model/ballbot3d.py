@@ -7,7 +7,7 @@ x = [q, q̇]; inputs τ = [τ_x, τ_y] (N m), the generalised forces on θ_x and
     M(q) q̈ + h(q, q̇) = [τ_x − D_x(θ̇_x), τ_y − D_y(θ̇_y), 0, 0]ᵀ,
 
 with h = C(q, q̇) q̇ + G(q) and friction D_i = D_c tanh(θ̇_i/ε) + D_v θ̇_i.
-Every coordinate, axis and sign is fixed in docs/design.md ("3D model"); the
+Every coordinate, axis and sign is fixed in docs/design/conventions.md ("3D model"); the
 terms M, h, the energy and the body kinematics are generated from a symbolic
 derivation by ``tools/derive_ballbot3d.py`` into
 :mod:`gracenav.model._ballbot3d_generated`.

@@ -1,7 +1,7 @@
 """Named indices of the 3D model's configuration and state vectors.
 
 Configuration q = [θ_x, θ_y, φ_x, φ_y]; state x = [q, q̇] (positions before
-velocities); input τ = [τ_x, τ_y]. See docs/design.md for the conventions.
+velocities); input τ = [τ_x, τ_y]. See docs/design/conventions.md for the conventions.
 """
 
 from __future__ import annotations

@@ -22,7 +22,7 @@ from the lattice and store none). The constants are the peak resident memory of
 ``gracenav run`` (``/usr/bin/time -v``), measured on the 30 m × 50 m warehouse at 3 cm
 and a 100 m × 100 m office at 5 cm, with 0 and 1 halvings (bench/bench_bigmaps.py): the
 estimate lies above each measured peak, by 2 % (the warehouse at d) to 33 % (the
-warehouse at d/2, whose peak varied between 0.66 and 0.86 GiB); see docs/design.md.
+warehouse at d/2, whose peak varied between 0.66 and 0.86 GiB); see docs/design/memory.md.
 """
 
 from __future__ import annotations

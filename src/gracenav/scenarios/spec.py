@@ -180,7 +180,8 @@ MAX_COORDINATE = 1.0e4
 """Largest |entry| of a start or goal state (m, m/s)."""
 
 MAX_IMPULSE_NS = 1000.0
-"""Largest push impulse per axis (N s); the robot falls from far less (README)."""
+"""Largest push impulse per axis (N s); the robot falls from far less
+(docs/design/conventions.md, Falls)."""
 
 MAX_DRAG_SPEED_MPS = 10.0
 """Largest drag velocity per axis (m/s)."""

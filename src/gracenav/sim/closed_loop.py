@@ -7,7 +7,7 @@ batches of initial conditions run through the same compiled loop; a MuJoCo
 plant runs the same control law through :mod:`gracenav.sim.mujoco`.
 
 States are x = [θ_x, θ_y, φ_x, φ_y, θ̇_x, θ̇_y, φ̇_x, φ̇_y] (see
-``docs/design.md``); position states p = [x, y, ẋ, ẏ] with x = r_w (θ_x + φ_x)."""
+``docs/design/conventions.md``); position states p = [x, y, ẋ, ẏ] with x = r_w (θ_x + φ_x)."""
 
 from __future__ import annotations
 

@@ -3,7 +3,7 @@
 The robot is built from rigid bodies and a soft-contact floor in MuJoCo
 (optional dependency, ``pip install gracenav[mujoco]``) and driven through
 the coordinates of the 3D model (:class:`gracenav.model.Ballbot3D`,
-conventions in docs/design.md, "3D model"): the state is x = [q, q̇] (8,) with
+conventions in docs/design/conventions.md, "3D model"): the state is x = [q, q̇] (8,) with
 q = [θ_x, θ_y, φ_x, φ_y] (rad) and the input τ = [τ_x, τ_y] (N m), the
 generalised forces on θ_x and θ_y.
 
@@ -231,7 +231,7 @@ def drive_torque(tau: ArrayLike, phi_x: ArrayLike) -> FloatArray:
     ndarray, shape (..., 3)
         τ_w = (−τ_y, τ_x, τ_y tan(φ_x/2)) (N m), world frame. The body receives
         −τ_w. Its power on ω_w − ω_b is τ_x θ̇_x + τ_y θ̇_y for rolling without
-        slip or spin (docs/design.md, "3D model").
+        slip or spin (docs/design/conventions.md, "3D model").
     """
     tau = np.asarray(tau, dtype=float)
     phi_x = np.asarray(phi_x, dtype=float)
