@@ -60,7 +60,7 @@ lock:
 	rm -rf .venv-lock
 	env -u PIP_CONSTRAINT $(PYTHON) -m venv .venv-lock
 	env -u PIP_CONSTRAINT .venv-lock/bin/python -m pip install --quiet --upgrade pip setuptools
-	env -u PIP_CONSTRAINT .venv-lock/bin/python -m pip install --quiet ".[test,mujoco,bench]"
+	env -u PIP_CONSTRAINT .venv-lock/bin/python -m pip install --quiet ".[test,mujoco,bench,log,ros]"
 	mkdir -p requirements
 	{ echo "# Every package the Makefile installs, pinned; regenerate with 'make lock'."; \
 	  echo "# Resolved on $$(date -u +%Y-%m-%d) with $$(.venv-lock/bin/python --version)."; \
