@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -127,11 +127,11 @@ class _Navigator:
             MarkerArray, "/gracenav/library", transient_local_qos()
         )
         self.status_pub = node.create_publisher(String, "/gracenav/status", 10)
-        node.create_subscription(Odometry, "/odom", self._on_odom, 10)
-        node.create_subscription(Imu, "/imu", self._on_imu, 10)
-        node.create_subscription(PoseStamped, "/goal_pose", self._on_goal, 10)
-        node.create_subscription(PathMsg, "/gracenav/route", self._on_route, 10)
-        node.create_subscription(Vector3Stamped, "/gracenav/push", self._on_push, 10)
+        node.create_subscription(Odometry, "/odom", self._guarded(self._on_odom), 10)
+        node.create_subscription(Imu, "/imu", self._guarded(self._on_imu), 10)
+        node.create_subscription(PoseStamped, "/goal_pose", self._guarded(self._on_goal), 10)
+        node.create_subscription(PathMsg, "/gracenav/route", self._guarded(self._on_route), 10)
+        node.create_subscription(Vector3Stamped, "/gracenav/push", self._guarded(self._on_push), 10)
         self._odom: tuple[float, np.ndarray] | None = None
         self._imu: tuple[float, tuple[float, float, float, float], np.ndarray] | None = None
         self._last_tick = -math.inf
@@ -142,7 +142,9 @@ class _Navigator:
         if par["map_file"]:
             self.core.set_map(_load_map_file(str(par["map_file"])))
         else:
-            node.create_subscription(OccupancyGrid, "/map", self._on_map, transient_local_qos())
+            node.create_subscription(
+                OccupancyGrid, "/map", self._guarded(self._on_map), transient_local_qos()
+            )
             self._log("info", "waiting for a map on /map")
         goal = [float(v) for v in par["goal"]]
         route = [float(v) for v in par["route"]]
@@ -155,12 +157,31 @@ class _Navigator:
                 raise ConfigError(f"parameter route is [x, y, x, y, ...] (m), got {route!r}")
             pts = np.asarray(route, dtype=float).reshape(-1, 2)
             self.core.request_goals(_route_goals(pts, float(par["route_speed"])), int(par["loops"]))
-        node.create_timer(0.05, self._on_timer)
+        timer = self._guarded(lambda _: self._on_timer())
+        node.create_timer(0.05, lambda: timer(None))
         self._status_count = 0
 
     # -- logging -----------------------------------------------------------------------
     def _log(self, level: str, message: str) -> None:
-        getattr(self.logger, {"warn": "warning"}.get(level, level))(message)
+        # one call site per severity: rclpy's logger refuses two at one site
+        if level == "error":
+            self.logger.error(message)
+        elif level == "warn":
+            self.logger.warning(message)
+        else:
+            self.logger.info(message)
+
+    def _guarded(self, callback: Callable[[Any], None]) -> Callable[[Any], None]:
+        """``callback`` with any exception logged instead of ending the node (the
+        command then stays what it was: held)."""
+
+        def run(msg: Any) -> None:
+            try:
+                callback(msg)
+            except Exception as exc:  # a bad message or a bug never ends the node
+                self._log("error", f"{callback.__name__}: {type(exc).__name__}: {exc}")
+
+        return run
 
     # -- inputs ------------------------------------------------------------------------
     def _on_map(self, msg: Any) -> None:

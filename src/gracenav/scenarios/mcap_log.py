@@ -36,6 +36,7 @@ import json
 import math
 import os
 import tempfile
+import threading
 from collections.abc import Sequence
 from pathlib import Path
 from typing import IO, Any
@@ -380,21 +381,22 @@ class McapRunLog:
             for topic, name in LOG_CHANNELS.items()
         }
         self._seq = 0
+        self._lock = threading.Lock()
         self.library = library
         self._policies: dict[int, Any] = {}
         self.counts: dict[str, int] = dict.fromkeys(LOG_CHANNELS, 0)
 
     # -- low level --------------------------------------------------------------------
     def _write(self, topic: str, ns: int, message: dict[str, Any]) -> None:
-        self._seq += 1
-        self._writer.add_message(
-            self._channels[topic],
-            log_time=ns,
-            data=json.dumps(message, allow_nan=False, separators=(",", ":")).encode(),
-            publish_time=ns,
-            sequence=self._seq,
-        )
-        self.counts[topic] += 1
+        data = json.dumps(message, allow_nan=False, separators=(",", ":")).encode()
+        with self._lock:  # a node writes from its control callback and its worker threads
+            if self._fh is None:
+                return
+            self._seq += 1
+            self._writer.add_message(
+                self._channels[topic], log_time=ns, data=data, publish_time=ns, sequence=self._seq
+            )
+            self.counts[topic] += 1
 
     # -- content ----------------------------------------------------------------------
     def world_map(self, t: float, world_map: Any) -> None:
@@ -678,10 +680,11 @@ class McapRunLog:
     # -- end --------------------------------------------------------------------------
     def close(self) -> Path:
         """Finish the file and move it into place; returns its path."""
-        if self._fh is None:
-            return self.path
-        self._writer.finish()
-        fh, self._fh = self._fh, None
+        with self._lock:
+            if self._fh is None:
+                return self.path
+            self._writer.finish()
+            fh, self._fh = self._fh, None
         fh.flush()
         os.fsync(fh.fileno())
         fh.close()
