@@ -94,10 +94,7 @@ def check_log_path(path: Path | None) -> None:
     if path is None:
         return
     if path.suffix.lower() == ".rrd":
-        raise OutputError(
-            f"--log {path}: Rerun files are not written; use an .mcap file (Rerun opens MCAP "
-            "files too)"
-        )
+        raise OutputError(f"--log {path}: Rerun files are not written; write an .mcap file instead")
     if path.suffix.lower() != ".mcap":
         raise OutputError(f"--log {path}: the file name must end in .mcap")
     if path.is_dir():
