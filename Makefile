@@ -66,7 +66,7 @@ lock:
 	rm -rf .venv-lock
 	env -u PIP_CONSTRAINT $(PYTHON) -m venv .venv-lock
 	env -u PIP_CONSTRAINT .venv-lock/bin/python -m pip install --quiet --upgrade pip setuptools
-	env -u PIP_CONSTRAINT .venv-lock/bin/python -m pip install --quiet ".[test,docs,mujoco,bench]"
+	env -u PIP_CONSTRAINT .venv-lock/bin/python -m pip install --quiet ".[test,docs,mujoco,bench,log,ros]"
 	mkdir -p requirements
 	{ echo "# Every package the Makefile installs, pinned; regenerate with 'make lock'."; \
 	  echo "# Resolved on $$(date -u +%Y-%m-%d) with $$(.venv-lock/bin/python --version)."; \

@@ -31,7 +31,14 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """Build the argument parser with all sub-commands."""
-    from gracenav.cli import campaign_cmd, palette_cmd, plot_cmd, run_cmd, simulate_cmd
+    from gracenav.cli import (
+        campaign_cmd,
+        palette_cmd,
+        plot_cmd,
+        ros_cmd,
+        run_cmd,
+        simulate_cmd,
+    )
 
     parser = _Parser(
         prog="gracenav",
@@ -50,6 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
     palette_cmd.register(sub)
     plot_cmd.register(sub)
     campaign_cmd.register(sub)
+    ros_cmd.register(sub)
     return parser
 
 

@@ -47,6 +47,7 @@ def register(sub: Any) -> None:
         help="override the scenario's simulated plant",
     )
     r.add_argument("--no-animation", action="store_true", help="skip the GIF (faster)")
+    add_log_argument(r)
     add_params_argument(r)
     add_palette_argument(r)
     r.set_defaults(func=run_run)
@@ -61,9 +62,45 @@ def register(sub: Any) -> None:
     )
     d.add_argument("--out", type=Path, default=Path("out/demo"), help="output directory")
     d.add_argument("--no-animation", action="store_true", help="skip the GIF (faster)")
+    add_log_argument(d)
     add_params_argument(d)
     add_palette_argument(d)
     d.set_defaults(func=run_demo)
+
+
+def add_log_argument(parser: argparse.ArgumentParser) -> None:
+    """Add ``--log FILE.mcap`` (the runs as an MCAP file Foxglove opens)."""
+    parser.add_argument(
+        "--log",
+        type=Path,
+        default=None,
+        metavar="FILE.mcap",
+        help=(
+            "also write the runs to an MCAP file that Foxglove opens: the map, the robot "
+            "(map -> base_link), its state, lean, torque and reference at 128 Hz, each "
+            "policy's domains while it runs, events and pushes (see docs/ros.md); needs "
+            "pip install 'gracenav[log]'"
+        ),
+    )
+
+
+def check_log_path(path: Path | None) -> None:
+    """Refuse a ``--log`` that cannot be written before any work (suffix, folder, the
+    optional dependency)."""
+    import importlib.util
+
+    from gracenav.errors import ConfigError, OutputError
+
+    if path is None:
+        return
+    if path.suffix.lower() == ".rrd":
+        raise OutputError(f"--log {path}: Rerun files are not written; write an .mcap file instead")
+    if path.suffix.lower() != ".mcap":
+        raise OutputError(f"--log {path}: the file name must end in .mcap")
+    if path.is_dir():
+        raise OutputError(f"--log {path} is a directory; give a file name such as run.mcap")
+    if importlib.util.find_spec("mcap") is None:
+        raise ConfigError("--log needs the optional dependency mcap: pip install 'gracenav[log]'")
 
 
 def _execute(
@@ -73,6 +110,7 @@ def _execute(
     animation: bool,
     params_path: Path | None,
     palette_path: Path | None = None,
+    log_path: Path | None = None,
 ) -> int:
     import dataclasses
 
@@ -81,6 +119,7 @@ def _execute(
     from gracenav.params import BallbotParams
     from gracenav.scenarios import load_scenario, run_scenario, write_outputs
 
+    check_log_path(log_path)
     sc = load_scenario(scenario_path)
     if plant is not None:
         sc = dataclasses.replace(sc, plant=plant)
@@ -99,7 +138,14 @@ def _execute(
             result = run_scenario(sc, palette=palette, params=params, progress=progress)
             bar.set_label(f"{sc.name}: writing")
             written = write_outputs(result, staging.staging, animation=animation)
+            if log_path is not None:
+                from gracenav.scenarios.mcap_log import write_scenario_log
+
+                bar.set_label(f"{sc.name}: log")
+                write_scenario_log(result, log_path)
     written = [out / p.name for p in written]
+    if log_path is not None:
+        written.append(log_path)
     spacing = "" if result.library is None else f" (lattice spacing {result.library.spacing:g} m)"
     if result.library is not None and result.library.world_map is not result.world_map:
         (x0, y0), (x1, y1) = result.library.world_map.bounds
@@ -159,7 +205,13 @@ def _fall_limit_deg() -> float:
 def run_run(args: argparse.Namespace) -> int:
     """Run ``gracenav run``."""
     return _execute(
-        args.scenario, args.out, args.plant, not args.no_animation, args.params, args.palette
+        args.scenario,
+        args.out,
+        args.plant,
+        not args.no_animation,
+        args.params,
+        args.palette,
+        args.log,
     )
 
 
@@ -168,4 +220,6 @@ def run_demo(args: argparse.Namespace) -> int:
     path = Path(
         str(resources.files("gracenav") / "data" / "scenarios" / "fig5_point_to_point.yaml")
     )
-    return _execute(path, args.out, None, not args.no_animation, args.params, args.palette)
+    return _execute(
+        path, args.out, None, not args.no_animation, args.params, args.palette, args.log
+    )

@@ -1,0 +1,130 @@
+"""The ROS nodes' conventions and logic without ROS: conversions, the DDS environment,
+and the navigator core's balancing, queueing and safe behaviours."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from gracenav.ros import convert
+from gracenav.ros.core import NavigatorCore, NavigatorOptions, Phase
+from gracenav.ros.env import LOCAL_DDS, local_dds_environment
+
+
+def test_import_gracenav_and_its_ros_package_do_not_import_rclpy() -> None:
+    code = (
+        "import sys, gracenav, gracenav.ros, gracenav.ros.core, gracenav.ros.convert, "
+        "gracenav.cli; assert 'rclpy' not in sys.modules, 'rclpy imported'"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=60)
+
+
+def test_local_dds_environment_keeps_the_users_values() -> None:
+    env: dict[str, str] = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET"}
+    got = local_dds_environment(env)
+    assert got["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "SUBNET"
+    assert got["ROS_LOCALHOST_ONLY"] == "1" and env["RMW_IMPLEMENTATION"] == "rmw_fastrtps_cpp"
+    fresh: dict[str, str] = {}
+    assert local_dds_environment(fresh) == LOCAL_DDS == fresh
+    assert "ROS_DOMAIN_ID" not in fresh and os.environ is not fresh
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_readings_round_trip_to_the_model_state(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    r = 0.1058
+    x = rng.normal(size=8) * np.array([5, 5, 0.1, 0.1, 3, 3, 0.5, 0.5])
+    p = convert.odometry_from_state(x, r)
+    q, w = convert.imu_from_state(x)
+    back = convert.state_from_readings(p, q, w, r)
+    np.testing.assert_allclose(back, x, rtol=0, atol=1e-12)
+
+
+def test_torque_vector_convention() -> None:
+    # Rolling toward +x turns the ball about +y; toward +y, about -x.
+    np.testing.assert_array_equal(convert.vector_from_torque([2.0, 0.0]), [0.0, 2.0, 0.0])
+    np.testing.assert_array_equal(convert.vector_from_torque([0.0, 3.0]), [-3.0, 0.0, 0.0])
+    t = np.array([0.7, -1.3])
+    np.testing.assert_array_equal(convert.torque_from_vector(convert.vector_from_torque(t)), t)
+    # A lean rate toward +x is a rotation rate about +y.
+    _, w = convert.imu_from_state([0, 0, 0, 0, 0, 0, 0.4, 0.0])
+    np.testing.assert_array_equal(w, [0.0, 0.4, 0.0])
+
+
+def _core(lines: list[tuple[str, str]]) -> NavigatorCore:
+    from gracenav.palette import load_palette
+
+    opts = NavigatorOptions(state_timeout=0.1, stop_timeout=0.3)
+    return NavigatorCore(load_palette(), opts, log=lambda lvl, msg: lines.append((lvl, msg)))
+
+
+def test_without_a_map_the_robot_balances_in_place_and_a_goal_waits() -> None:
+    from gracenav.sim import Model3DPlant, state_from_position
+
+    lines: list[tuple[str, str]] = []
+    core = _core(lines)
+    plant = Model3DPlant(core.palette.params)
+    plant.reset(state_from_position([0.5, -0.2, 0.0, 0.0], core.radius, lean=(0.03, -0.02)))
+    core.request_goals([[2.0, 2.0, 0.0, 0.0]])
+    assert ("info", "goal queued: the library is not built yet") in lines
+    for k in range(2048):  # 2 s
+        tick = core.control(k * core.dt, plant.measure(), wall=0.0)
+        plant.advance(tick.torque, core.dt)
+    assert tick.policy == -1 and core.phase is Phase.WAITING_FOR_MAP
+    x = plant.state()
+    p = convert.odometry_from_state(x, core.radius)
+    np.testing.assert_allclose(p[:2], [0.5, -0.2], atol=0.05)
+    assert np.hypot(*x[2:4]) < 0.01 and np.hypot(*p[2:]) < 0.05
+
+
+def test_silence_holds_then_stops_and_readings_bring_balancing_back() -> None:
+    lines: list[tuple[str, str]] = []
+    core = _core(lines)
+    x = np.zeros(8)
+    x[2] = 0.02  # leaning: the balancing torque is not zero
+    tick = core.control(0.0, x, wall=10.0)
+    assert np.any(tick.torque != 0.0)
+    assert core.watchdog(10.05) == "ok"
+    assert core.watchdog(10.15) == "hold"
+    np.testing.assert_array_equal(core.last_torque, tick.torque)  # held
+    assert core.watchdog(10.35) == "stop" and core.phase is Phase.STOPPED
+    np.testing.assert_array_equal(core.last_torque, [0.0, 0.0])
+    assert core.watchdog(11.0) == "stop"
+    levels = [lvl for lvl, msg in lines if "no valid state reading" in msg]
+    assert levels == ["warn", "error"]  # each change logged once
+    core.control(1.0, x, wall=11.1)
+    assert core.staleness == "ok"
+    assert any("readings are back" in msg for _, msg in lines)
+
+
+def test_rejections_are_logged_once_per_reason_every_two_seconds() -> None:
+    lines: list[tuple[str, str]] = []
+    core = _core(lines)
+    for k in range(100):
+        core.reject("/odom", "frame_id 'x' is not 'odom' or 'map'", wall=0.01 * k)
+    core.reject("/imu", "orientation or angular velocity is not finite", wall=0.5)
+    core.reject("/odom", "frame_id 'x' is not 'odom' or 'map'", wall=2.5)
+    assert [m for _, m in lines] == [
+        "/odom: frame_id 'x' is not 'odom' or 'map'; dropped (holding the last command)",
+        "/imu: orientation or angular velocity is not finite; dropped (holding the last command)",
+        "/odom: frame_id 'x' is not 'odom' or 'map'; dropped (holding the last command)",
+    ]
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "needle"),
+    [
+        ({"state_timeout": 0.5, "stop_timeout": 0.2}, "state_timeout < stop_timeout"),
+        ({"cost": "energy"}, "cost must be"),
+        ({"footprint_radius": -1.0}, "footprint_radius must be a positive number"),
+    ],
+)
+def test_bad_navigator_options(kwargs: dict[str, object], needle: str) -> None:
+    from gracenav.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=needle):
+        NavigatorOptions(**kwargs)  # type: ignore[arg-type]
