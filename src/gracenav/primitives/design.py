@@ -11,6 +11,11 @@ import numpy as np
 
 from gracenav.model.rotation import quarter_turn
 from gracenav.params import BallbotParams
+from gracenav.primitives.limited import (
+    LimitedReferenceOptions,
+    PolynomialReference,
+    limited_reference,
+)
 from gracenav.primitives.motion import (
     _CATALOGUE,
     FloatArray,
@@ -24,6 +29,7 @@ from gracenav.primitives.motion import (
 )
 from gracenav.primitives.shape_planner import (
     NonicReference,
+    PositionReference,
     ShapePlannerResult,
     flat_output_gain,
     flat_output_lengths,
@@ -117,7 +123,7 @@ def _reference_ok(
 
 
 def _plan_pair(
-    ref: NonicReference,
+    ref: NonicReference | PolynomialReference,
     v0: FloatArray,
     disp: FloatArray,
     v1: FloatArray,
@@ -137,7 +143,11 @@ def _plan_pair(
     if not feasible(res0):
         return None
     rot = quarter_turn(1)
-    ref1 = NonicReference.between(ref.duration, np.zeros(2), rot @ v0, rot @ disp, rot @ v1)
+    ref1: PositionReference
+    if isinstance(ref, PolynomialReference):
+        ref1 = ref.rotated(rot)
+    else:
+        ref1 = NonicReference.between(ref.duration, np.zeros(2), rot @ v0, rot @ disp, rot @ v1)
     res1 = plan_shape_trajectory(ref1, params, model="3d", options=options.planner)
     if not feasible(res1):
         return None
@@ -177,11 +187,14 @@ def _plan_maneuver(
                 yield duration
 
     chosen: tuple[float, tuple[ShapePlannerResult, ShapePlannerResult]] | None = None
-    for duration in candidates():
-        pair = _plan_pair(ref_at(duration), v0, disp, v1, params, options)
-        if pair is not None:
-            chosen = (duration, pair)
-            break
+    if options.reference == "limited":
+        chosen = _plan_limited(v0, disp, v1, grid, params, options)
+    else:
+        for duration in candidates():
+            pair = _plan_pair(ref_at(duration), v0, disp, v1, params, options)
+            if pair is not None:
+                chosen = (duration, pair)
+                break
     if chosen is None:
         return None
     duration, (res0, res1) = chosen
@@ -197,6 +210,49 @@ def _plan_maneuver(
         plans=(res0.trajectory, res1.trajectory),
         reports=(PrimitiveReport.from_result(res0), PrimitiveReport.from_result(res1)),
     )
+
+
+def _plan_limited(
+    v0: FloatArray,
+    disp: FloatArray,
+    v1: FloatArray,
+    grid: list[float],
+    params: BallbotParams,
+    options: PrimitiveSetOptions,
+) -> tuple[float, tuple[ShapePlannerResult, ShapePlannerResult]] | None:
+    """The shortest duration of ``grid`` whose limited reference (degree 15, the lean
+    and torque within the limits on the linearised model) the shape trajectory planner
+    makes feasible on the 3D model in both frames, with its plans; the grid is bisected
+    for the linear program's shortest duration first, then climbed until the plans
+    are feasible."""
+    lim = LimitedReferenceOptions(
+        max_speed=options.max_speed, max_backward_speed=options.max_backward_speed
+    )
+
+    def reference(duration: float) -> PolynomialReference | None:
+        return limited_reference(
+            v0, disp, v1, params, max_lean=options.max_lean, durations=[duration], options=lim
+        )
+
+    # The shortest grid duration with a reference: bisection (longer is easier, up to
+    # the backward-motion rule, which the climb below meets).
+    lo, hi = -1, len(grid) - 1
+    if reference(grid[hi]) is None:
+        return None
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if reference(grid[mid]) is not None:
+            hi = mid
+        else:
+            lo = mid
+    for k in range(hi, len(grid)):
+        ref = reference(grid[k])
+        if ref is None:
+            continue
+        pair = _plan_pair(ref, v0, disp, v1, params, options)
+        if pair is not None:
+            return grid[k], pair
+    return None
 
 
 def _build(d: float, params: BallbotParams, options: PrimitiveSetOptions) -> PrimitiveSet:

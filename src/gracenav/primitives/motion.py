@@ -8,7 +8,7 @@ import dataclasses
 import math
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -354,6 +354,10 @@ class PrimitiveSetOptions:
         Longest maneuver (s): longer nonics run backwards between trims.
     planner : ShapePlannerOptions
         Options of the shape trajectory planner.
+    reference : {"nonic", "limited"}
+        Desired flat output of the maneuvers: the nonic of fixed form (the paper's), or
+        the polynomial of degree 15 that keeps the lean and torque within their limits
+        for the shortest duration (:mod:`gracenav.primitives.limited`).
     """
 
     cruise_speed: float = 0.5
@@ -365,8 +369,14 @@ class PrimitiveSetOptions:
     duration_step: float = 0.125
     max_duration: float = 4.5
     planner: ShapePlannerOptions = field(default_factory=ShapePlannerOptions)
+    reference: Literal["nonic", "limited"] = "nonic"
 
     def __post_init__(self) -> None:
+        if self.reference not in ("nonic", "limited"):
+            raise ConfigError(
+                f"PrimitiveSetOptions.reference must be 'nonic' or 'limited', got "
+                f"{self.reference!r}"
+            )
         for name in (
             "cruise_speed",
             "rest_duration",
@@ -388,8 +398,13 @@ class PrimitiveSetOptions:
             )
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-dict form (for cache keys and file headers)."""
-        return dataclasses.asdict(self)
+        """Plain-dict form (for cache keys and file headers); ``reference`` only when it
+        is not the nonic, so that the keys of sets and palettes built before it existed
+        stay what they were."""
+        out = dataclasses.asdict(self)
+        if out["reference"] == "nonic":
+            del out["reference"]
+        return out
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> PrimitiveSetOptions:
