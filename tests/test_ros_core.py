@@ -128,3 +128,44 @@ def test_bad_navigator_options(kwargs: dict[str, object], needle: str) -> None:
 
     with pytest.raises(ConfigError, match=needle):
         NavigatorOptions(**kwargs)  # type: ignore[arg-type]
+
+
+def test_a_route_is_driven_through_its_goals_in_order() -> None:
+    # A surveillance route as /gracenav/route gives it: the navigator core plans it on
+    # a worker thread and drives the robot through every goal, then ends at the last.
+    from gracenav.sim import Model3DPlant, state_from_position
+    from gracenav.world import Rectangle, WorldMap
+
+    lines: list[tuple[str, str]] = []
+    core = _core(lines)
+    world = WorldMap.from_shapes(
+        [[0.0, 0.0], [4.0, 3.0]], [Rectangle((1.8, 2.2), (2.2, 3.0))], resolution=0.05
+    )
+    core.set_map(world, background=False)
+    plant = Model3DPlant(core.palette.params)
+    plant.reset(state_from_position([1.0, 1.0, 0.0, 0.0], core.radius))
+    core.control(0.0, plant.measure(), wall=0.0)
+    route = [[3.0, 1.0, 0.0, 0.0], [3.0, 2.0, 0.0, 0.0], [1.0, 2.0, 0.0, 0.0]]
+    core.request_goals(route)
+    visits: list[int] = []
+    finished = None
+    for k in range(1, 60 * 1024):
+        if core.phase is Phase.PLANNING and k % 64 == 0:
+            import time
+
+            time.sleep(0.001)  # let the planning thread run
+        tick = core.control(k * core.dt, plant.measure(), wall=k * core.dt)
+        plant.advance(tick.torque, core.dt)
+        if k % 256 == 0:
+            p = convert.odometry_from_state(plant.state(), core.radius)
+            near = [j for j, g in enumerate(route) if np.hypot(p[0] - g[0], p[1] - g[1]) < 0.05]
+            if near and (not visits or visits[-1] != near[0]):
+                visits.append(near[0])
+        if tick.finished is not None:
+            finished = tick.finished
+            break
+    assert finished == "goal_reached", lines
+    assert visits == [0, 1, 2]
+    p = convert.odometry_from_state(plant.state(), core.radius)
+    np.testing.assert_allclose(p[:2], route[-1][:2], atol=0.01)
+    core.close()
