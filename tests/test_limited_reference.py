@@ -140,3 +140,36 @@ def test_options_are_checked() -> None:
     # The nonic keeps the keys of sets and palettes built before the option existed.
     assert "reference" not in PrimitiveSetOptions().to_dict()
     assert PrimitiveSetOptions(reference="limited").to_dict()["reference"] == "limited"
+
+
+def test_speed_levels_keep_the_first_set_and_add_trims_whose_moves_last_as_long() -> None:
+    from gracenav.primitives.design import _trim_velocities, _trims
+    from gracenav.primitives.motion import speed_catalogue, trim_names
+
+    base = PrimitiveSetOptions()
+    fast = PrimitiveSetOptions(cruise_speeds=(1.0, 1.2), max_speed=1.35)
+    assert "cruise_speeds" not in base.to_dict()
+    assert PrimitiveSetOptions.from_dict(fast.to_dict()) == fast
+    vb, vf = _trim_velocities(0.5, base), _trim_velocities(0.5, fast)
+    for name, v in vb.items():  # the first level is unchanged
+        np.testing.assert_array_equal(vf[name], v)
+    trims = {t.name: t for t in _trims(0.5, PARAMS, fast)}
+    assert trim_names(3) == ("cruise3_x", "cruise3_y", "cruise3_xy")
+    for level, speed, cells in ((2, 1.0, 2), (3, 1.2, 3)):
+        x, _, xy = trim_names(level)
+        np.testing.assert_allclose(trims[x].displacement, [0.5 * cells, 0.0], atol=1e-12)
+        # Speeds within a planner step of the asked ones, moves a whole number of steps.
+        assert abs(np.hypot(*trims[x].start_velocity) - speed) <= speed * 2e-3
+        assert abs(np.hypot(*trims[xy].start_velocity) - speed) <= speed * 2e-3
+        for t in (trims[x], trims[xy]):
+            steps = t.duration / fast.planner.step
+            assert abs(steps - round(steps)) < 1e-9
+    # Every maneuver of a level joins trims of that level, the level below or rest.
+    names = set(trims) | {"rest"}
+    for level in (2, 3):
+        for start, end, cands in speed_catalogue(level):
+            assert start in names and end in names and len(cands) >= 5
+    with pytest.raises(ConfigError, match="ascending"):
+        PrimitiveSetOptions(cruise_speeds=(1.0, 0.9), max_speed=1.5)
+    with pytest.raises(ConfigError, match="max_speed"):
+        PrimitiveSetOptions(cruise_speeds=(1.0,))

@@ -46,6 +46,29 @@ def register(sub: Any) -> None:
     b.add_argument("--processes", type=int, default=2, help="worker processes (default 2)")
     add_params_argument(b, "the robot to build the palette for (controller and plant)")
     b.add_argument("--d", type=float, default=0.5, help="distance parameter d (m, default 0.5)")
+    b.add_argument(
+        "--reference",
+        choices=("nonic", "limited"),
+        default="nonic",
+        help=(
+            "maneuver references: the nonic of fixed form (default), or the polynomials "
+            "that keep the lean and torque within their limits for the shortest duration"
+        ),
+    )
+    b.add_argument(
+        "--cruise-speeds",
+        type=float,
+        nargs="+",
+        default=(),
+        metavar="V",
+        help="further cruise speeds (m/s) above 0.5, ascending, each with its maneuvers",
+    )
+    b.add_argument(
+        "--max-speed",
+        type=float,
+        default=None,
+        help="largest speed of a maneuver's reference (m/s; default 0.8, or 1.1 × the top speed)",
+    )
     b.set_defaults(func=run_build)
     v = s.add_parser(
         "verify",
@@ -120,6 +143,7 @@ def run_build(args: argparse.Namespace) -> int:
     from gracenav.errors import ConfigError
     from gracenav.palette import build_palette_for, cached_palette_path
     from gracenav.policies import VerificationOptions
+    from gracenav.primitives import PrimitiveSetOptions
 
     if args.processes < 1:
         raise ConfigError(f"--processes must be >= 1, got {args.processes}")
@@ -127,12 +151,19 @@ def run_build(args: argparse.Namespace) -> int:
         raise ConfigError(f"--d must be positive, got {args.d}")
     t0 = time.perf_counter()
     params = load_params(args) or BallbotParams()
+    speeds = tuple(args.cruise_speeds)
+    top = max(speeds, default=0.0)
+    max_speed = args.max_speed if args.max_speed is not None else max(0.8, 1.1 * top)
+    prim_options = PrimitiveSetOptions(
+        reference=args.reference, cruise_speeds=speeds, max_speed=max_speed
+    )
     pal = build_palette_for(
         params=params,
         gains=design_gains(params),
         options=VerificationOptions(),
         d=args.d,
         processes=args.processes,
+        primitive_options=prim_options,
     )
     t2 = time.perf_counter()
     out = pal.save(args.out if args.out is not None else cached_palette_path(pal.key))

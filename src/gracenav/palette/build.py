@@ -26,6 +26,7 @@ from gracenav.policies.catches import (
     shift_cells,
     shift_policies,
 )
+from gracenav.primitives import PrimitiveSetOptions
 
 __all__ = ["build_palette"]
 
@@ -132,6 +133,7 @@ def build_palette(
     options: VerificationOptions | None = None,
     processes: int = 2,
     progress: bool = True,
+    primitive_options: PrimitiveSetOptions | None = None,
 ) -> Palette:
     """Size and verify one policy per primitive, then its larger-domain variants; keep
     those that pass.
@@ -157,6 +159,9 @@ def build_palette(
         Worker processes (1 runs in this process).
     progress : bool
         Show a progress bar on a terminal.
+    primitive_options : PrimitiveSetOptions, optional
+        The options the primitives were planned with (recorded in the palette and its
+        key; default the defaults).
 
     Returns
     -------
@@ -168,6 +173,7 @@ def build_palette(
     params = params if params is not None else BallbotParams()
     gains = gains if gains is not None else design_gains(params)
     options = options if options is not None else VerificationOptions()
+    prim_options = primitive_options if primitive_options is not None else PrimitiveSetOptions()
     shape = domain_shape(gains, horizon=options.shape_horizon)
     unique: list[SampledPrimitive] = []
     duplicates: list[tuple[str, str]] = []
@@ -272,7 +278,8 @@ def build_palette(
         d=d,
         params=params,
         options=options,
-        key=palette_key(params, gains, options, d),
+        key=palette_key(params, gains, options, d, prim_options),
+        primitive_options=prim_options,
         catches=verified(catches),
         shifts=verified(shifts),
     )

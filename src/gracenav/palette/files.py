@@ -226,11 +226,14 @@ def build_palette_for(
     d: float,
     processes: int | None = None,
     progress: bool = True,
+    primitive_options: PrimitiveSetOptions | None = None,
 ) -> Palette:
-    """Plan the primitive set Σ(d) and build its palette (see :func:`build_palette`)."""
+    """Plan the primitive set Σ(d) (with ``primitive_options``, default the defaults)
+    and build its palette (see :func:`build_palette`)."""
     from gracenav.primitives import primitive_set
 
-    prims = [SampledPrimitive.from_primitive(p) for p in primitive_set(d=d, params=params)]
+    pset = primitive_set(d=d, params=params, options=primitive_options)
+    prims = [SampledPrimitive.from_primitive(p) for p in pset]
     if processes is None:
         processes = max(1, min(4, os.cpu_count() or 1))
     return build_palette(
@@ -241,4 +244,5 @@ def build_palette_for(
         options=options,
         processes=processes,
         progress=progress,
+        primitive_options=primitive_options,
     )

@@ -26,6 +26,8 @@ from gracenav.primitives.motion import (
     PrimitiveSetOptions,
     TrimPrimitive,
     _frozen,
+    speed_catalogue,
+    trim_names,
 )
 from gracenav.primitives.shape_planner import (
     NonicReference,
@@ -39,20 +41,33 @@ from gracenav.primitives.shape_planner import (
 __all__ = []
 
 
+def _level_cells(level: int, options: PrimitiveSetOptions) -> int:
+    """m: the cruise trims of ``level`` move m d along an axis (1 for the first level,
+    the ceiling of the speed ratio above it)."""
+    if level == 1:
+        return 1
+    return math.ceil(options.cruise_speeds[level - 2] / options.cruise_speed - 1e-9)
+
+
 def _trim_velocities(d: float, options: PrimitiveSetOptions) -> dict[str, FloatArray]:
+    """Velocity (m/s) of every trim by name: each cruise speed adjusted so that its
+    displacement takes a whole number of planner steps."""
     tick = options.planner.step
-    t_axis = max(1, round(d / options.cruise_speed / tick)) * tick
-    t_diag = max(1, round(d * math.sqrt(2.0) / options.cruise_speed / tick)) * tick
-    vx = d / t_axis
-    vd = d / t_diag
-    return {
-        "rest": np.zeros(2),
-        "cruise_x": np.array([vx, 0.0]),
-        "cruise_y": np.array([0.0, vx]),
-        "cruise_xy": np.array([vd, vd]),
-        "cruise_nx": np.array([-vx, 0.0]),
-        "cruise_ny": np.array([0.0, -vx]),
-    }
+    out = {"rest": np.zeros(2)}
+    for level, speed in enumerate((options.cruise_speed, *options.cruise_speeds), start=1):
+        m = _level_cells(level, options)
+        t_axis = max(1, round(m * d / speed / tick)) * tick
+        t_diag = max(1, round(m * d * math.sqrt(2.0) / speed / tick)) * tick
+        vx = m * d / t_axis
+        vd = m * d / t_diag
+        x, y, xy = trim_names(level)
+        out[x] = np.array([vx, 0.0])
+        out[y] = np.array([0.0, vx])
+        out[xy] = np.array([vd, vd])
+        if level == 1:  # the U-turns' ends
+            out["cruise_nx"] = np.array([-vx, 0.0])
+            out["cruise_ny"] = np.array([0.0, -vx])
+    return out
 
 
 def _trims(d: float, params: BallbotParams, options: PrimitiveSetOptions) -> list[TrimPrimitive]:
@@ -75,10 +90,12 @@ def _trims(d: float, params: BallbotParams, options: PrimitiveSetOptions) -> lis
             params,
         ),
     ]
-    for name, disp in (("cruise_x", (d, 0.0)), ("cruise_y", (0.0, d)), ("cruise_xy", (d, d))):
-        v = vel[name]
-        duration = float(np.max(np.abs(disp)) / np.max(np.abs(v)))
-        out.append(TrimPrimitive(name, duration, _frozen(disp), _frozen(v), _frozen(v), params))
+    for level in range(1, len(options.cruise_speeds) + 2):
+        m = _level_cells(level, options) * d
+        for name, disp in zip(trim_names(level), ((m, 0.0), (0.0, m), (m, m)), strict=True):
+            v = vel[name]
+            duration = float(np.max(np.abs(disp)) / np.max(np.abs(v)))
+            out.append(TrimPrimitive(name, duration, _frozen(disp), _frozen(v), _frozen(v), params))
     return out
 
 
@@ -264,4 +281,13 @@ def _build(d: float, params: BallbotParams, options: PrimitiveSetOptions) -> Pri
             omitted.append(_maneuver_name(start, end, cells))
         else:
             prims.append(m)
+    for level in range(2, len(options.cruise_speeds) + 2):
+        for start, end, candidates in speed_catalogue(level):
+            for cells in candidates:
+                m = _plan_maneuver(start, end, cells, d, params, options)
+                if m is not None:
+                    prims.append(m)
+                    break
+            else:
+                omitted.append(f"{start}_to_{end}")
     return PrimitiveSet(d, params, options, tuple(prims), tuple(omitted))

@@ -5,6 +5,7 @@ the primitive set Σ(d) with its options."""
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
@@ -358,6 +359,15 @@ class PrimitiveSetOptions:
         Desired flat output of the maneuvers: the nonic of fixed form (the paper's), or
         the polynomial of degree 15 that keeps the lean and torque within their limits
         for the shortest duration (:mod:`gracenav.primitives.limited`).
+    cruise_speeds : tuple of float
+        Further cruise speeds (m/s), ascending, above ``cruise_speed``: level k (from 2)
+        has the trims ``cruiseK_x``, ``cruiseK_y`` and ``cruiseK_xy``, whose
+        displacement is m d along an axis (m d, m d on the diagonal) with m the ceiling
+        of the speed over ``cruise_speed`` (so that a trim lasts about as long as the
+        first level's), and the maneuvers of :func:`speed_catalogue` (starts and stops,
+        speed changes from the level below, 45° and 90° turns, lane changes), each at
+        the smallest displacement of its candidates that the reference makes feasible.
+        ``max_speed`` must exceed the top speed.
     """
 
     cruise_speed: float = 0.5
@@ -370,8 +380,22 @@ class PrimitiveSetOptions:
     max_duration: float = 4.5
     planner: ShapePlannerOptions = field(default_factory=ShapePlannerOptions)
     reference: Literal["nonic", "limited"] = "nonic"
+    cruise_speeds: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
+        speeds = tuple(float(v) for v in self.cruise_speeds)
+        object.__setattr__(self, "cruise_speeds", speeds)
+        ladder = (self.cruise_speed, *speeds)
+        if any(not (math.isfinite(b) and b > a) for a, b in itertools.pairwise(ladder)):
+            raise ConfigError(
+                "PrimitiveSetOptions.cruise_speeds must be ascending and above cruise_speed "
+                f"({self.cruise_speed} m/s), got {self.cruise_speeds}"
+            )
+        if speeds and not self.max_speed > speeds[-1]:
+            raise ConfigError(
+                f"PrimitiveSetOptions.max_speed {self.max_speed} m/s must exceed the top cruise "
+                f"speed {speeds[-1]} m/s"
+            )
         if self.reference not in ("nonic", "limited"):
             raise ConfigError(
                 f"PrimitiveSetOptions.reference must be 'nonic' or 'limited', got "
@@ -404,6 +428,10 @@ class PrimitiveSetOptions:
         out = dataclasses.asdict(self)
         if out["reference"] == "nonic":
             del out["reference"]
+        if not out["cruise_speeds"]:
+            del out["cruise_speeds"]
+        else:
+            out["cruise_speeds"] = list(out["cruise_speeds"])
         return out
 
     @classmethod
@@ -411,6 +439,8 @@ class PrimitiveSetOptions:
         """Inverse of :meth:`to_dict`."""
         fields = dict(data)
         fields["planner"] = ShapePlannerOptions(**fields["planner"])
+        if "cruise_speeds" in fields:
+            fields["cruise_speeds"] = tuple(fields["cruise_speeds"])
         return cls(**fields)
 
 
@@ -461,3 +491,42 @@ _CATALOGUE: tuple[tuple[str, str, tuple[int, int]], ...] = (
     ("cruise_y", "cruise_ny", (1, 0)),
     ("cruise_y", "cruise_ny", (2, 0)),
 )
+
+
+def trim_names(level: int) -> tuple[str, str, str]:
+    """Names of the cruise trims of speed level ``level`` (1: ``cruise_x``, ``cruise_y``,
+    ``cruise_xy``; k > 1: ``cruisek_x``, ...)."""
+    tag = "cruise" if level == 1 else f"cruise{level}"
+    return f"{tag}_x", f"{tag}_y", f"{tag}_xy"
+
+
+def speed_catalogue(level: int) -> tuple[tuple[str, str, tuple[tuple[int, int], ...]], ...]:
+    """The maneuvers of cruise level ``level`` >= 2: (start trim, end trim, candidate
+    displacements in units of d, smallest first); the primitive set keeps each at its
+    first feasible candidate. Starts and stops along an axis and the diagonal; speed
+    changes with the level below, up and down; 45° turns to and from the diagonal, left
+    and right; 90° turns; lane changes. No U-turns: the tree slows down first."""
+    x, y, xy = trim_names(level)
+    bx, _, bxy = trim_names(level - 1)
+    ax = tuple((i, 0) for i in range(1, 16))
+    diag = tuple((i, i) for i in range(1, 12))
+    ahead = tuple(c for i in range(2, 14) for c in ((i, i - 1), (i + 1, i - 1)))
+    beside = tuple((j, i) for i, j in ahead)
+    return (
+        ("rest", x, ax),
+        (x, "rest", ax),
+        ("rest", xy, diag),
+        (xy, "rest", diag),
+        (bx, x, ax),
+        (x, bx, ax),
+        (bxy, xy, diag),
+        (xy, bxy, diag),
+        (x, xy, ahead),
+        (y, xy, beside),
+        (xy, x, ahead),
+        (xy, y, beside),
+        (x, y, diag),
+        (y, x, diag),
+        (x, x, tuple((i, 1) for i in range(3, 16))),
+        (y, y, tuple((1, i) for i in range(3, 16))),
+    )
