@@ -190,3 +190,34 @@ def test_a_pushed_run_leaves_out_the_push_only() -> None:
     whole = ep.jerk_profile()
     near = whole.jerk[np.abs(whole.time - 3.0) <= reach]
     assert np.max(near) > 3.0 * calm.runs[0].max_jerk_mps3
+
+
+def test_campaign_rows_carry_both_jerk_figures(tmp_path) -> None:
+    """Per-planner medians of max and p95 jerk in summary.json, and both columns in
+    table.md, from rows as run_trial writes them."""
+    import json
+
+    from gracenav.campaign.results import write_results
+
+    rows = [
+        {
+            "planner": planner,
+            "trial": i,
+            "reached_goal": True,
+            "outcome": "goal_reached",
+            "time_s": 10.0 + i,
+            "max_lean_deg": 3.0,
+            "max_jerk_mps3": scale * (1.0 + i),
+            "p95_jerk_mps3": scale * (0.5 + i),
+        }
+        for planner, scale in (("gracenav", 2.0), ("decoupled", 1.0))
+        for i in range(3)
+    ]
+    write_results(rows, tmp_path)
+    summary = json.loads((tmp_path / "summary.json").read_text())["planners"]
+    assert summary["gracenav"]["median_max_jerk_mps3"] == pytest.approx(4.0, rel=1e-12)
+    assert summary["gracenav"]["median_p95_jerk_mps3"] == pytest.approx(3.0, rel=1e-12)
+    assert summary["decoupled"]["median_p95_jerk_mps3"] == pytest.approx(1.5, rel=1e-12)
+    table = (tmp_path / "table.md").read_text().splitlines()
+    assert "| max jerk (m/s³) median | p95 jerk (m/s³) median |" in table[0]
+    assert "| 4.0 | 3.0 |" in table[2] and "| 2.0 | 1.5 |" in table[3]
