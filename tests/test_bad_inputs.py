@@ -378,6 +378,7 @@ def test_summary_is_strict_json_with_units() -> None:
         max_lean_deg=1.0,
         max_torque_nm=1.0,
         max_jerk_mps3=1.0,
+        p95_jerk_mps3=0.5,
         switches=0,
         non_graceful_switches=0,
         max_graceful_torque_jump_nm=0.0,
@@ -388,7 +389,7 @@ def test_summary_is_strict_json_with_units() -> None:
     d = run.to_dict()
     json.dumps(d, allow_nan=False)
     assert d["final_error_m"] is None and d["final_speed_mps"] is None
-    for key in ("max_torque_nm", "max_jerk_mps3", "max_graceful_torque_jump_nm"):
+    for key in ("max_torque_nm", "max_jerk_mps3", "p95_jerk_mps3", "max_graceful_torque_jump_nm"):
         assert key in d
 
 

@@ -274,6 +274,7 @@ def test_run_summary_contact_and_outcome() -> None:
         "max_lean_deg": 1.0,
         "max_torque_nm": 1.0,
         "max_jerk_mps3": 1.0,
+        "p95_jerk_mps3": 0.5,
         "switches": 0,
         "non_graceful_switches": 0,
         "max_graceful_torque_jump_nm": 0.0,
@@ -298,28 +299,6 @@ def test_run_summary_contact_and_outcome() -> None:
     assert touched.outcome == "contact" and touched.to_dict()["outcome"] == "contact"
     with pytest.raises(ValueError, match="contact cannot have reached"):
         RunSummary(reached_goal=True, min_clearance_m=-0.01, contact=True, **fields)
-
-
-def test_max_jerk_leaves_out_only_the_push_ticks() -> None:
-    """The push's velocity step is left out of max_jerk_mps3 (two control periods on
-    each side), everything else stays: checked on a synthetic episode."""
-    from types import SimpleNamespace
-
-    import numpy as np
-
-    from gracenav.scenarios.runs import _max_jerk
-    from gracenav.sim import Push
-
-    dt = 1.0 / 1024.0
-    t = np.arange(0, 1024) * dt
-    jerk = np.full(t.size - 1, 3.0)
-    k = 512  # the push between ticks k and k + 1
-    jerk[k] = 9000.0  # the impulse
-    jerk[700] = 50.0  # a torque step later: the robot's own jerk
-    ep = SimpleNamespace(time=t, ball_jerk=lambda params: jerk)
-    push = Push(time=float(t[k] + 0.5 * dt), impulse=(5.0, 0.0))
-    assert _max_jerk(ep, (push,), None) == pytest.approx(50.0)
-    assert _max_jerk(ep, (), None) == pytest.approx(9000.0)
 
 
 def test_planner_keys_and_a_shared_library() -> None:

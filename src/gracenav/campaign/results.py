@@ -71,6 +71,7 @@ def summarise(rows: list[dict[str, Any]], *, bins: int = 5) -> dict[str, Any]:
         entry["median_max_lean_deg"] = _median(lean)
         entry["max_lean_deg"] = max(lean) if lean else None
         entry["median_max_jerk_mps3"] = _median(_values(rs, "max_jerk_mps3"))
+        entry["median_p95_jerk_mps3"] = _median(_values(rs, "p95_jerk_mps3"))
         entry["fallback_trials"] = sum(1 for r in rs if (r.get("fallbacks") or 0) > 0)
         entry["worker_losses"] = sum(int(r.get("worker_losses") or 0) for r in rs)
         imp = [r["impulse_ns"] for r in rs if r.get("impulse_ns") is not None]
@@ -123,15 +124,17 @@ def write_results(rows: list[dict[str, Any]], directory: Path) -> list[Path]:
     written.append(directory / "summary.json")
     lines = [
         "| planner | trials | success | 95 % CI | median time to goal (s) | "
-        "max lean (°) median / max | max jerk (m/s³) median | contacts | no plan |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "max lean (°) median / max | max jerk (m/s³) median | p95 jerk (m/s³) median | "
+        "contacts | no plan |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for planner, e in summary["planners"].items():
         ci = e["ci95"]
         lines.append(
             f"| {planner} | {e['n']} | {e['rate']:.1%} | [{ci[0]:.1%}, {ci[1]:.1%}] | "
             f"{_fmt(e['median_time_s'])} | {_fmt(e['median_max_lean_deg'])} / "
-            f"{_fmt(e['max_lean_deg'])} | {_fmt(e['median_max_jerk_mps3'], 0)} | "
+            f"{_fmt(e['max_lean_deg'])} | {_fmt(e['median_max_jerk_mps3'], 1)} | "
+            f"{_fmt(e['median_p95_jerk_mps3'], 1)} | "
             f"{e['outcomes'].get('contact', 0)} | {e['outcomes'].get('no_plan', 0)} |"
         )
     lines += _bin_table(summary)

@@ -32,6 +32,7 @@ _MEASURES = (
     "final_error_m",
     "max_lean_deg",
     "max_jerk_mps3",
+    "p95_jerk_mps3",
     "max_torque_nm",
     "min_clearance_m",
     "verified_recoveries",

@@ -24,7 +24,7 @@ def register(sub: Any) -> None:
             "and execute the task with the hybrid controller on the simulated robot. Writes "
             "DIR/summary.json (per run: start, reached_goal, outcome, stop_reason, contact, "
             "contact_time_s, time_s, path_length_m, final_error_m, max_lean_deg, "
-            "max_torque_nm, max_jerk_mps3, switches, non_graceful_switches, "
+            "max_torque_nm, max_jerk_mps3, p95_jerk_mps3, switches, non_graceful_switches, "
             "min_clearance_m, ...), DIR/trajectory.csv, "
             "DIR/events.csv (the switch log), DIR/paths.png, DIR/lean.png and "
             "DIR/animation.gif. The files are written together: DIR is replaced only when "
@@ -167,7 +167,8 @@ def _execute(
         start = ", ".join(f"{v:g}" for v in run.start[:2])
         print(
             f"run {k + 1} from ({start}): {state}{err}, "
-            f"max lean {run.max_lean_deg:.2f}°, switches {run.switches} "
+            f"max lean {run.max_lean_deg:.2f}°, jerk max {run.max_jerk_mps3:.1f} / "
+            f"p95 {run.p95_jerk_mps3:.1f} m/s³, switches {run.switches} "
             f"({run.non_graceful_switches} non-graceful)"
         )
         if run.stop_reason == "fell":

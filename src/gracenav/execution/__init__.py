@@ -3,6 +3,7 @@
 from gracenav.execution.capture import TerminalPolicy
 from gracenav.execution.controller import HybridController
 from gracenav.execution.episode import Episode, ExecutionLog, Trace, drive, held_at
+from gracenav.execution.smoothness import JerkProfile, jerk_profile
 from gracenav.execution.types import (
     CAPTURE,
     TERMINAL,
@@ -23,6 +24,7 @@ __all__ = [
     "ExecutionLog",
     "ExecutionOptions",
     "HybridController",
+    "JerkProfile",
     "PlanningMode",
     "SwitchEvent",
     "TaskStatus",
@@ -30,4 +32,5 @@ __all__ = [
     "Trace",
     "drive",
     "held_at",
+    "jerk_profile",
 ]

@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from gracenav.errors import ConfigError
 from gracenav.execution.capture import CapturePlan
+from gracenav.execution.smoothness import JerkProfile, jerk_profile
 from gracenav.execution.types import Command, EventReason, SwitchEvent, TaskStatus
 from gracenav.params import BallbotParams
 from gracenav.planning.repair import ReplanEvent
@@ -192,7 +193,11 @@ class Episode:
 
     def ball_jerk(self, params: BallbotParams | None = None) -> FloatArray:
         """Ball jerk magnitude (m/s³) between ticks, from the 3D model's accelerations
-        (``params``: the plant's; default CMU ballbot), shape (N − 1,)."""
+        (``params``: the plant's; default CMU ballbot), shape (N − 1,).
+
+        A difference of accelerations over one control period: it reads every step of
+        the held torque as Δa × the control rate, so it includes the chatter that
+        measurement noise causes. The run summaries use :meth:`jerk_profile`."""
         from gracenav.model.ballbot3d import Ballbot3D
 
         model = Ballbot3D(params)
@@ -200,6 +205,12 @@ class Episode:
         ball = self.radius * (acc[:, :2] + acc[:, 2:])
         dt = np.diff(self.time)
         return np.asarray(np.linalg.norm(np.diff(ball, axis=0), axis=1) / dt)
+
+    def jerk_profile(self, breaks: Sequence[float] = ()) -> JerkProfile:
+        """The ball's jerk from the true state: :mod:`gracenav.execution.smoothness`'s
+        estimate from the plant's ball velocity, leaving out the ticks around each time
+        in ``breaks`` (s; the pushes)."""
+        return jerk_profile(self.time, self.position_state[:, 2:], breaks=breaks)
 
 
 def held_at(disturbances: Sequence[Disturbance], t: float) -> bool:

@@ -10,10 +10,9 @@ from typing import Any
 
 import numpy as np
 
-from gracenav.control import CONTROL_RATE
 from gracenav.params import BallbotParams
 from gracenav.scenarios.spec import Scenario
-from gracenav.sim import Disturbance, Push
+from gracenav.sim import Push
 from gracenav.world.moving import moving_clearance
 
 __all__ = ["RunSummary", "ScenarioResult"]
@@ -25,8 +24,10 @@ class RunSummary:
 
     Every quantity's name ends with its unit (``_s``, ``_m``, ``_mps``, ``_deg``, ``_nm``
     (N m), ``_mps3`` (m/s³), ``_ms``); ``final_error_m`` is None for surveillance (no
-    single goal). ``max_jerk_mps3`` leaves out the ticks within two control periods of a
-    push (the impulse is a velocity step from outside).
+    single goal). ``max_jerk_mps3`` and ``p95_jerk_mps3`` (its 95th percentile over the
+    ticks) are the ball's jerk from the true state, the plant's ball velocity fitted
+    over 0.3 s windows (:mod:`gracenav.execution.smoothness`), leaving out the ticks
+    whose window holds a push (the impulse is a velocity step from outside).
 
     The simulated robot passes through obstacles (the plant has no contact model), so a
     run is judged on its footprint too: ``contact`` is true if the footprint overlapped
@@ -54,6 +55,7 @@ class RunSummary:
     max_lean_deg: float
     max_torque_nm: float
     max_jerk_mps3: float
+    p95_jerk_mps3: float
     switches: int
     non_graceful_switches: int
     max_graceful_torque_jump_nm: float
@@ -152,6 +154,7 @@ def _summarise(
         clearance = np.minimum(clearance, moving)
     latencies = [1000.0 * e.latency_s for e in ep.replans]
     touching = np.flatnonzero(clearance < 0.0)
+    jerk = ep.jerk_profile([d.time for d in sc.disturbances if isinstance(d, Push)])
     contact = bool(touching.size)
     return RunSummary(
         start=tuple(float(v) for v in start),
@@ -165,7 +168,8 @@ def _summarise(
         final_speed_mps=float(np.linalg.norm(p[-1, 2:])),
         max_lean_deg=float(np.rad2deg(np.max(np.abs(ep.lean)))),
         max_torque_nm=float(np.max(np.abs(ep.inputs))),
-        max_jerk_mps3=_max_jerk(ep, sc.disturbances, params),
+        max_jerk_mps3=jerk.max,
+        p95_jerk_mps3=jerk.p95,
         switches=ep.switches,
         non_graceful_switches=ep.non_graceful_switches,
         max_graceful_torque_jump_nm=float(np.max(jumps)) if jumps.size else 0.0,
@@ -182,23 +186,3 @@ def _summarise(
         replan_ms_max=float(np.max(latencies)) if latencies else 0.0,
         blocked_s=ep.blocked_time,
     )
-
-
-_PUSH_JERK_WINDOW_S = 2.0 / CONTROL_RATE
-"""Jerk samples this close (s) to a push are left out of ``max_jerk_mps3``."""
-
-
-def _max_jerk(ep: Any, disturbances: Sequence[Disturbance], params: BallbotParams) -> float:
-    """Largest ball jerk (m/s³) of the run, leaving out the ticks of each push: an
-    impulse steps the velocity, an input from outside rather than the robot's motion
-    (its jerk is the impulse over a tick squared), which would hide every difference
-    between planners."""
-    if ep.time.size <= 2:
-        return 0.0
-    jerk = ep.ball_jerk(params)
-    mid = 0.5 * (ep.time[1:] + ep.time[:-1])
-    keep = np.ones(jerk.shape, dtype=bool)
-    for d in disturbances:
-        if isinstance(d, Push):
-            keep &= np.abs(mid - d.time) > _PUSH_JERK_WINDOW_S
-    return float(np.max(jerk[keep])) if np.any(keep) else 0.0

@@ -1,0 +1,244 @@
+"""Speed against the physical bound, gracenav and the decoupled baseline side by side.
+
+Two measurements, each run with both planners (``planner.kind: gracenav`` and
+``decoupled``) in this one process:
+
+1. ``long``: a long open task. A fixed 30 m × 15 m building-like map
+   (:func:`building_scenario`): two wall stubs along y = 7.5 m from the left and right
+   edges, six columns of 0.6 m × 0.6 m, and a diagonal kept open from (3, 3) to
+   (25, 12.08), L = 23.80 m (the walls and columns stay at least 1.5 m from it), rest to
+   rest. Printed beside the measured time: the physical bound T* = L / v_max +
+   v_max / a_max (:func:`gracenav.model.physical_time_bound`), v_max where friction
+   alone takes the torque limit and a_max the steady acceleration at the palette's
+   lean limit (its maneuvers' ``max_lean``, or ``--lean-limit-deg``), both from the
+   palette's robot parameters.
+2. ``pairs``: the first ``--trials`` trials of ``examples/campaigns/random_pairs.yaml``
+   (the campaign's own draws, :func:`gracenav.campaign.runner.run_trial`; ``--seed`` replaces
+   the file's seed), every trial run with both planners.
+
+For each: success, median time to goal (trials that reached it) and the ratio
+gracenav / decoupled, median max jerk and median p95 jerk (from the true state,
+:mod:`gracenav.execution.smoothness`), largest lean (°) against the palette's lean
+limits (its maneuvers' and the verified balancing domain's); for the pairs also the
+median of time / T* with L the straight distance (a lower bound on the path, so T*
+stays a bound). Progress goes to stderr, the tables to stdout.
+
+    OPENBLAS_NUM_THREADS=1 nice -n 5 .venv/bin/python bench/bench_speed.py
+        [--trials 20] [--seed N] [--only long|pairs] [--lean-limit-deg 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import dataclasses
+import math
+import statistics
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+PAIRS = HERE.parent / "examples" / "campaigns" / "random_pairs.yaml"
+PLANNERS = ("gracenav", "decoupled")
+START = (3.0, 3.0)
+GOAL = (25.0, 12.08)
+CLEAR = 1.5  # m, walls and columns from the diagonal
+
+
+def building_scenario(seed: int = 0) -> dict[str, Any]:
+    """The long task's scenario document: 30 m × 15 m, walls and columns off an open
+    diagonal from :data:`START` to :data:`GOAL` (rest to rest), no noise, no push."""
+    walls = [
+        {"rectangle": {"min": [0.0, 7.4], "max": [9.0, 7.6]}},
+        {"rectangle": {"min": [19.0, 7.4], "max": [30.0, 7.6]}},
+    ]
+    columns = [(6.0, 11.0), (12.0, 11.5), (18.0, 3.5), (24.0, 4.0), (10.0, 2.0), (27.0, 9.0)]
+    obstacles = walls + [
+        {"rectangle": {"min": [x - 0.3, y - 0.3], "max": [x + 0.3, y + 0.3]}} for x, y in columns
+    ]
+    _check_open(obstacles)
+    return {
+        "name": "building 30 m x 15 m, long diagonal",
+        "map": {"bounds": [[0.0, 0.0], [30.0, 15.0]], "resolution": 0.05, "obstacles": obstacles},
+        "robot": {"footprint_radius": 0.2},
+        "planner": {"cost": "time"},
+        "task": {
+            "kind": "point_to_point",
+            "goal": [*GOAL, 0.0, 0.0],
+            "starts": [[*START, 0.0, 0.0]],
+        },
+        "simulation": {"max_time": 150, "seed": seed},
+    }
+
+
+def _check_open(obstacles: list[dict[str, Any]]) -> None:
+    """Every rectangle's corners and centre at least :data:`CLEAR` from the diagonal
+    segment (the rectangles are small or parallel to an axis, so their vertices
+    decide), and none crossing it."""
+    a, b = np.asarray(START), np.asarray(GOAL)
+    d = b - a
+    for o in obstacles:
+        lo, hi = np.asarray(o["rectangle"]["min"]), np.asarray(o["rectangle"]["max"])
+        pts = np.array([lo, hi, [lo[0], hi[1]], [hi[0], lo[1]], 0.5 * (lo + hi)])
+        s = np.clip((pts - a) @ d / (d @ d), 0.0, 1.0)
+        dist = np.linalg.norm(pts - (a + s[:, None] * d), axis=1)
+        side = np.sign(d[0] * (pts[:, 1] - a[1]) - d[1] * (pts[:, 0] - a[0]))
+        if np.min(dist) < CLEAR or np.ptp(side) > 0:
+            raise AssertionError(f"{o} is within {CLEAR} m of the diagonal")
+
+
+def _median(values: list[float]) -> float:
+    return statistics.median(values) if values else math.nan
+
+
+def _row(name: str, rows: list[dict[str, Any]], bound: float | None) -> dict[str, Any]:
+    reached = [r for r in rows if r.get("reached_goal")]
+    out = {
+        "planner": name,
+        "success": f"{len(reached)}/{len(rows)}",
+        "time": _median([r["time_s"] for r in reached]),
+        "max_jerk": _median([r["max_jerk_mps3"] for r in rows if r.get("max_jerk_mps3")]),
+        "p95_jerk": _median([r["p95_jerk_mps3"] for r in rows if r.get("p95_jerk_mps3")]),
+        "lean_median": _median([r["max_lean_deg"] for r in rows if r.get("max_lean_deg")]),
+        "lean_max": max((r["max_lean_deg"] for r in rows if r.get("max_lean_deg")), default=0.0),
+        "over_bound": _median([r["time_s"] / r["bound_s"] for r in reached if "bound_s" in r]),
+    }
+    if bound is not None:
+        out["over_bound"] = out["time"] / bound
+    return out
+
+
+def _print_table(rows: list[dict[str, Any]], lean: tuple[float, float]) -> None:
+    print("  planner    success  time (s)  time/T*  max jerk  p95 jerk  max lean (°) median / max")
+    for r in rows:
+        print(
+            f"  {r['planner']:<10} {r['success']:>7}  {r['time']:8.2f}  {r['over_bound']:7.2f}  "
+            f"{r['max_jerk']:8.2f}  {r['p95_jerk']:8.2f}  "
+            f"{r['lean_median']:.2f} / {r['lean_max']:.2f}"
+        )
+    g, d = rows
+    print(
+        f"  gracenav / decoupled: time {g['time'] / d['time']:.2f}, "
+        f"max jerk {g['max_jerk'] / d['max_jerk']:.2f}, "
+        f"p95 jerk {g['p95_jerk'] / d['p95_jerk']:.2f}"
+    )
+    print(
+        f"  lean limits of the palette: maneuvers {lean[0]:.2f}°, verified balancing "
+        f"domain {lean[1]:.2f}°; within the maneuvers' limit: "
+        + ", ".join(f"{r['planner']} {'yes' if r['lean_max'] <= lean[0] else 'no'}" for r in rows)
+    )
+
+
+def bench_long(palette: Any, lean_limit: float, seed: int) -> None:
+    from gracenav.model import physical_time_bound
+    from gracenav.scenarios import parse_scenario, run_scenario
+
+    length = float(np.hypot(GOAL[0] - START[0], GOAL[1] - START[1]))
+    tb = physical_time_bound(palette.params, length, lean_limit=lean_limit)
+    rows = []
+    for planner in PLANNERS:
+        doc = building_scenario(seed)
+        doc["planner"]["kind"] = planner
+        scenario = parse_scenario(doc, source="long task")
+        t0 = time.perf_counter()
+        print(f"long task: {planner} ...", file=sys.stderr, flush=True)
+        result = run_scenario(scenario, palette=palette)
+        run = result.runs[0]
+        print(
+            f"long task: {planner} done in {time.perf_counter() - t0:.0f} s wall "
+            f"({run.outcome}, {run.time_s:.2f} s simulated)",
+            file=sys.stderr,
+            flush=True,
+        )
+        rows.append(_row(planner, [run.to_dict()], tb.bound))
+    print(
+        f"long task: 30 m x 15 m building, ({START[0]:g}, {START[1]:g}) -> "
+        f"({GOAL[0]:g}, {GOAL[1]:g}), L = {length:.2f} m, rest to rest"
+    )
+    print(
+        f"  physical bound: v_max {tb.v_max:.3f} m/s (friction = torque limit "
+        f"{palette.params.torque_limit:g} N m), a_max {tb.a_max:.3f} m/s² at "
+        f"{math.degrees(lean_limit):.2f}° lean, T* = L / v_max + v_max / a_max = {tb.bound:.2f} s"
+    )
+    _print_table(rows, _lean_limits(palette))
+
+
+def bench_pairs(palette: Any, trials: int, seed: int | None, lean_limit: float) -> None:
+    from gracenav.campaign import load_campaign
+    from gracenav.campaign.runner import run_trial
+    from gracenav.model import physical_time_bound
+
+    campaign = load_campaign(PAIRS)
+    if seed is not None:
+        campaign = dataclasses.replace(campaign, seed=seed)
+    by_planner: dict[str, list[dict[str, Any]]] = {p: [] for p in PLANNERS}
+    t0 = time.perf_counter()
+    for i in range(trials):
+        for planner in PLANNERS:
+            row = run_trial(campaign, i, planner)
+            if "start_x" in row:
+                length = math.hypot(row["goal_x"] - row["start_x"], row["goal_y"] - row["start_y"])
+                bound = physical_time_bound(palette.params, length, lean_limit=lean_limit)
+                row["bound_s"] = bound.bound
+            by_planner[planner].append(row)
+        print(
+            f"pairs: trial {i + 1}/{trials} ({time.perf_counter() - t0:.0f} s)",
+            file=sys.stderr,
+            flush=True,
+        )
+    rows = [_row(p, by_planner[p], None) for p in PLANNERS]
+    print(
+        f"random pairs: {PAIRS.relative_to(HERE.parent)}, first {trials} trials, seed "
+        f"{campaign.seed}; time/T* is the median over trials, L the straight distance, "
+        f"a_max at {math.degrees(lean_limit):.2f}°"
+    )
+    _print_table(rows, _lean_limits(palette))
+
+
+def _lean_limits(palette: Any) -> tuple[float, float]:
+    """The palette's lean limits (°): its maneuvers' and its verified balancing domain's."""
+    return (
+        math.degrees(palette.primitive_options.max_lean),
+        math.degrees(palette.options.lean_limit),
+    )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument("--trials", type=int, default=20, help="random pairs trials (default 20)")
+    ap.add_argument(
+        "--seed", type=int, default=None, help="campaign seed (default: the file's); long: sim"
+    )
+    ap.add_argument("--only", choices=("long", "pairs"), default=None)
+    ap.add_argument(
+        "--lean-limit-deg",
+        type=float,
+        default=None,
+        help="lean limit of the bound (default: the palette's maneuvers' max_lean)",
+    )
+    args = ap.parse_args()
+    from gracenav.palette import load_palette
+
+    palette = load_palette()
+    lean = (
+        math.radians(args.lean_limit_deg)
+        if args.lean_limit_deg is not None
+        else float(palette.primitive_options.max_lean)
+    )
+    if args.only in (None, "long"):
+        bench_long(palette, lean, args.seed if args.seed is not None else 0)
+    if args.only in (None, "pairs"):
+        bench_pairs(palette, args.trials, args.seed, lean)
+
+
+if __name__ == "__main__":
+    main()
