@@ -44,6 +44,8 @@ from typing import Any
 
 import numpy as np
 
+from gracenav.palette import PaletteLimits, load_palette
+
 HERE = Path(__file__).resolve().parent
 PAIRS = HERE.parent / "examples" / "campaigns" / "random_pairs.yaml"
 PLANNERS = ("gracenav", "decoupled")
@@ -205,7 +207,7 @@ def bench_pairs(palette: Any, trials: int, seed: int | None, lean_limit: float) 
 def _lean_limits(palette: Any) -> tuple[float, float]:
     """The palette's lean limits (°): its maneuvers' and its verified balancing domain's."""
     return (
-        math.degrees(palette.primitive_options.max_lean),
+        math.degrees(PaletteLimits.of(palette).max_lean),
         math.degrees(palette.options.lean_limit),
     )
 
@@ -226,13 +228,11 @@ def main() -> None:
         help="lean limit of the bound (default: the palette's maneuvers' max_lean)",
     )
     args = ap.parse_args()
-    from gracenav.palette import load_palette
-
     palette = load_palette()
     lean = (
         math.radians(args.lean_limit_deg)
         if args.lean_limit_deg is not None
-        else float(palette.primitive_options.max_lean)
+        else float(PaletteLimits.of(palette).max_lean)
     )
     if args.only in (None, "long"):
         bench_long(palette, lean, args.seed if args.seed is not None else 0)

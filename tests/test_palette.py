@@ -246,3 +246,31 @@ def test_stored_members_are_the_zip_members_and_compressed_ones_are_refused() ->
     np.savez_compressed(buf, a=np.arange(10.0))
     with pytest.raises(ValueError, match="compressed"):
         _stored_members(buf.getvalue())
+
+
+def test_palette_limits_give_the_default_options_and_read_back_the_shipped_palette() -> None:
+    import dataclasses
+    import math
+
+    from gracenav.errors import ConfigError
+    from gracenav.palette import PaletteLimits, load_palette
+    from gracenav.policies import VerificationOptions
+    from gracenav.primitives import PrimitiveSetOptions
+
+    limits = PaletteLimits()
+    assert limits.primitive_options() == PrimitiveSetOptions()
+    assert limits.verification_options() == VerificationOptions()
+    assert PaletteLimits.of(load_palette()) == limits
+    fast = PaletteLimits(cruise_speeds=(0.5, 1.0, 1.2), max_speed=1.35, reference="limited")
+    prim = fast.primitive_options()
+    assert (prim.cruise_speed, prim.cruise_speeds, prim.reference) == (0.5, (1.0, 1.2), "limited")
+    slower = dataclasses.replace(limits, max_lean=math.radians(4.0))
+    catch = slower.verification_options().catch
+    assert catch is not None and catch.max_lean == pytest.approx(math.radians(4.0), abs=1e-15)
+    assert slower.primitive_options().max_lean == pytest.approx(math.radians(4.0), abs=1e-15)
+    text = limits.describe(60.0)
+    assert "lean 4.5° planned, 8° verified" in text and "torque 60 N m" in text
+    with pytest.raises(ConfigError, match="below verified_lean"):
+        PaletteLimits(max_lean=math.radians(9.0))
+    with pytest.raises(ConfigError, match="ascending"):
+        PaletteLimits(cruise_speeds=(0.5, 0.4))

@@ -141,9 +141,7 @@ def run_build(args: argparse.Namespace) -> int:
     from gracenav import BallbotParams
     from gracenav.control import design_gains
     from gracenav.errors import ConfigError
-    from gracenav.palette import build_palette_for, cached_palette_path
-    from gracenav.policies import VerificationOptions
-    from gracenav.primitives import PrimitiveSetOptions
+    from gracenav.palette import PaletteLimits, build_palette_for, cached_palette_path
 
     if args.processes < 1:
         raise ConfigError(f"--processes must be >= 1, got {args.processes}")
@@ -151,19 +149,16 @@ def run_build(args: argparse.Namespace) -> int:
         raise ConfigError(f"--d must be positive, got {args.d}")
     t0 = time.perf_counter()
     params = load_params(args) or BallbotParams()
-    speeds = tuple(args.cruise_speeds)
-    top = max(speeds, default=0.0)
-    max_speed = args.max_speed if args.max_speed is not None else max(0.8, 1.1 * top)
-    prim_options = PrimitiveSetOptions(
-        reference=args.reference, cruise_speeds=speeds, max_speed=max_speed
-    )
+    speeds = (0.5, *args.cruise_speeds)
+    max_speed = args.max_speed if args.max_speed is not None else max(0.8, 1.1 * speeds[-1])
+    limits = PaletteLimits(cruise_speeds=speeds, max_speed=max_speed, reference=args.reference)
     pal = build_palette_for(
         params=params,
         gains=design_gains(params),
-        options=VerificationOptions(),
+        options=limits.verification_options(),
         d=args.d,
         processes=args.processes,
-        primitive_options=prim_options,
+        primitive_options=limits.primitive_options(),
     )
     t2 = time.perf_counter()
     out = pal.save(args.out if args.out is not None else cached_palette_path(pal.key))
@@ -244,7 +239,7 @@ def run_verify(args: argparse.Namespace) -> int:
 
 def run_show(args: argparse.Namespace) -> int:
     """Run ``gracenav palette show``."""
-    from gracenav.palette import load_palette
+    from gracenav.palette import PaletteLimits, load_palette
 
     pal = load_palette(args.file)
     print(_table(pal))
@@ -252,4 +247,5 @@ def run_show(args: argparse.Namespace) -> int:
         f"{len(pal)} policies ({len(pal.base_policies)} primitives and their larger-domain "
         f"variants), d = {pal.d} m, key {pal.key[:12]}"
     )
+    print(PaletteLimits.of(pal).describe(pal.params.torque_limit))
     return 0

@@ -13,7 +13,8 @@ for a file the user forced. Files are written atomically.
 
 Modules: :mod:`~gracenav.palette.palette` (the palette and its storage),
 :mod:`~gracenav.palette.files` (keys, shipped and cached files, loading),
-:mod:`~gracenav.palette.build` (sizing and verifying every policy).
+:mod:`~gracenav.palette.build` (sizing and verifying every policy),
+:mod:`~gracenav.palette.limits` (the limits a palette is built to, stated once).
 """
 
 from gracenav.palette.build import (
@@ -27,6 +28,7 @@ from gracenav.palette.files import (
     load_palette,
     shipped_palette_path,
 )
+from gracenav.palette.limits import PaletteLimits
 from gracenav.palette.palette import (
     PALETTE_FORMAT,
     REGULATOR_NAME,
@@ -40,6 +42,7 @@ __all__ = [
     "PALETTE_FORMAT",
     "REGULATOR_NAME",
     "Palette",
+    "PaletteLimits",
     "build_palette",
     "build_palette_for",
     "cached_palette_path",

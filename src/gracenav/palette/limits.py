@@ -1,0 +1,112 @@
+"""The limits a palette is built to, stated once: lean, speeds and the maneuvers' kind of
+reference, from which the primitive set's and the verification's options follow; the
+torque limit is the robot's (:attr:`gracenav.BallbotParams.torque_limit`)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Literal
+
+from gracenav.errors import ConfigError
+from gracenav.policies import CatchOptions, VerificationOptions
+from gracenav.primitives import PrimitiveSetOptions
+
+if TYPE_CHECKING:
+    from gracenav.palette.palette import Palette
+
+__all__ = ["PaletteLimits"]
+
+
+@dataclass(frozen=True)
+class PaletteLimits:
+    """What a palette is built to (defaults: the shipped palette's).
+
+    Attributes
+    ----------
+    max_lean : float
+        Largest body tilt the maneuvers and the pushed catches plan (rad); 4.5°. The
+        settled and still catches plan 6° and 7.5° (their own options), and every
+        policy is verified within ``verified_lean`` (8°).
+    cruise_speeds : tuple of float
+        The cruise trims' speeds (m/s), ascending: the first level's and those above
+        it (:attr:`PrimitiveSetOptions.cruise_speeds`).
+    max_speed : float
+        Largest speed of a maneuver's reference (m/s), above the top cruise speed.
+    reference : {"nonic", "limited"}
+        The maneuvers' references (:attr:`PrimitiveSetOptions.reference`).
+    verified_lean : float
+        Lean within which every run of a verification must stay (rad), 8°.
+    catch_speeds : tuple of float
+        Speeds (m/s) of the catches of pushed robots (the top one bounds the speed a
+        push may leave the robot with and still be caught by a verified policy).
+    """
+
+    max_lean: float = math.radians(4.5)
+    cruise_speeds: tuple[float, ...] = (0.5,)
+    max_speed: float = 0.8
+    reference: Literal["nonic", "limited"] = "nonic"
+    verified_lean: float = math.radians(8.0)
+    catch_speeds: tuple[float, ...] = CatchOptions().speeds
+
+    def __post_init__(self) -> None:
+        for name in ("max_lean", "verified_lean", "max_speed"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
+                raise ConfigError(f"PaletteLimits.{name} must be positive, got {v!r}")
+        if not self.max_lean < self.verified_lean:
+            raise ConfigError(
+                f"PaletteLimits.max_lean {math.degrees(self.max_lean):g}° must be below "
+                f"verified_lean {math.degrees(self.verified_lean):g}°"
+            )
+        speeds = tuple(float(v) for v in self.cruise_speeds)
+        if not speeds:
+            raise ConfigError("PaletteLimits.cruise_speeds needs at least one speed")
+        object.__setattr__(self, "cruise_speeds", speeds)
+        object.__setattr__(self, "catch_speeds", tuple(float(v) for v in self.catch_speeds))
+        self.primitive_options()  # the speeds' checks
+
+    def primitive_options(self) -> PrimitiveSetOptions:
+        """The primitive set's options these limits give (its other options default)."""
+        return PrimitiveSetOptions(
+            cruise_speed=self.cruise_speeds[0],
+            cruise_speeds=self.cruise_speeds[1:],
+            max_lean=self.max_lean,
+            max_speed=self.max_speed,
+            reference=self.reference,
+        )
+
+    def verification_options(self) -> VerificationOptions:
+        """The verification options these limits give (the others default)."""
+        base = VerificationOptions()
+        catch = base.catch
+        if catch is not None:
+            catch = dataclasses.replace(catch, max_lean=self.max_lean, speeds=self.catch_speeds)
+        return dataclasses.replace(base, lean_limit=self.verified_lean, catch=catch)
+
+    @classmethod
+    def of(cls, palette: Palette) -> PaletteLimits:
+        """The limits ``palette`` was built to, read from its options."""
+        prim = palette.primitive_options
+        catch = palette.options.catch
+        return cls(
+            max_lean=prim.max_lean,
+            cruise_speeds=(prim.cruise_speed, *prim.cruise_speeds),
+            max_speed=prim.max_speed,
+            reference=prim.reference,
+            verified_lean=palette.options.lean_limit,
+            catch_speeds=catch.speeds if catch is not None else (),
+        )
+
+    def describe(self, torque_limit: float) -> str:
+        """The limits in one line, degrees at the edge (``torque_limit``: the robot's,
+        N m)."""
+        speeds = ", ".join(f"{v:g}" for v in self.cruise_speeds)
+        top = max(self.catch_speeds, default=0.0)
+        return (
+            f"limits: lean {math.degrees(self.max_lean):g}° planned, "
+            f"{math.degrees(self.verified_lean):g}° verified; torque {torque_limit:g} N m; "
+            f"cruise {speeds} m/s; references {self.reference}, at most {self.max_speed:g} "
+            f"m/s; catches from up to {top:g} m/s"
+        )
