@@ -60,7 +60,7 @@ def test_ends_are_those_of_a_trim_exactly(seed: int) -> None:
         PARAMS,
         LEAN,
         PARAMS.torque_limit,
-        LimitedReferenceOptions(max_speed=2.0, max_backward_speed=5.0),
+        LimitedReferenceOptions(max_speed=2.0, max_backward_speed=5.0, max_ball_jerk=None),
     )
     assert got is not None
     ref = PolynomialReference(T, got[1])
@@ -83,7 +83,14 @@ def test_the_nonic_is_never_better_at_its_own_duration() -> None:
             (tau - PARAMS.coulomb_friction) / (PARAMS.torque_limit - PARAMS.coulomb_friction),
         )
         got = _load_program(
-            T, zero, disp, zero, PARAMS, LEAN, PARAMS.torque_limit, LimitedReferenceOptions()
+            T,
+            zero,
+            disp,
+            zero,
+            PARAMS,
+            LEAN,
+            PARAMS.torque_limit,
+            LimitedReferenceOptions(max_ball_jerk=None),
         )
         assert got is not None
         assert got[0] <= z_nonic * (1 + 1e-6)
@@ -91,7 +98,8 @@ def test_the_nonic_is_never_better_at_its_own_duration() -> None:
 
 def test_limits_hold_between_the_samples_and_the_duration_beats_the_nonic() -> None:
     disp, zero = np.array([0.5, 0.0]), np.zeros(2)
-    ref = limited_reference(zero, disp, zero, PARAMS, max_lean=LEAN, durations=GRID)
+    free = LimitedReferenceOptions(max_ball_jerk=None)
+    ref = limited_reference(zero, disp, zero, PARAMS, max_lean=LEAN, durations=GRID, options=free)
     assert ref is not None
     lean, tau = _loads(ref, ref.duration)
     assert lean <= LEAN * 1.01  # the program holds them at 161 samples
@@ -102,6 +110,43 @@ def test_limits_hold_between_the_samples_and_the_duration_beats_the_nonic() -> N
     assert nonic is not None
     assert ref.duration <= 0.8 * nonic.duration
     assert ref.duration >= 2.0 * math.sqrt(0.5 / (flat_output_gain(PARAMS) * LEAN))
+
+
+def _ball_jerk(ref: object, duration: float, n: int = 4001) -> float:
+    """Largest |y⁽³⁾ − (L/κ) y⁽⁵⁾| (m/s³): the ball's jerk on the linearised model."""
+    t = np.linspace(0.0, duration, n)
+    lk = flat_output_lengths(PARAMS) / flat_output_gain(PARAMS)
+    j = ref.value(t, 3) - lk * ref.value(t, 5)  # type: ignore[attr-defined]
+    return float(np.max(np.hypot(j[:, 0], j[:, 1])))
+
+
+def test_the_ball_jerk_bound_holds_and_costs_time() -> None:
+    disp, zero = np.array([0.5, 0.0]), np.zeros(2)
+    grid = np.arange(1, 161) * 0.03125
+    durations = []
+    for jerk in (None, 10.0, 6.0, 3.0):
+        opts = LimitedReferenceOptions(max_ball_jerk=jerk)
+        ref = limited_reference(
+            zero, disp, zero, PARAMS, max_lean=LEAN, durations=grid, options=opts
+        )
+        assert ref is not None
+        if jerk is not None:
+            assert _ball_jerk(ref, ref.duration) <= jerk * 1.02
+        durations.append(ref.duration)
+    assert durations == sorted(durations)  # a tighter bound never shortens it
+    # Unbounded, the ball jerks two orders of magnitude more than the nonic's 5.6 m/s³.
+    free = limited_reference(
+        zero,
+        disp,
+        zero,
+        PARAMS,
+        max_lean=LEAN,
+        durations=grid,
+        options=LimitedReferenceOptions(max_ball_jerk=None),
+    )
+    assert free is not None and _ball_jerk(free, free.duration) > 50.0
+    nonic = NonicReference.between(2.75, zero, zero, disp, zero)
+    assert _ball_jerk(nonic, 2.75) == pytest.approx(5.61, abs=0.01)
 
 
 def test_rotation_turns_every_derivative() -> None:
@@ -129,7 +174,7 @@ def test_a_limited_maneuver_is_feasible_on_the_3d_model() -> None:
         assert res.converged
         assert res.peak_lean <= LEAN and res.peak_torque <= PARAMS.torque_limit
     nonic = _plan_maneuver("rest", "cruise_x", (1, 0), 0.5, PARAMS, PrimitiveSetOptions())
-    assert nonic is not None and duration < nonic.duration
+    assert nonic is not None and duration <= nonic.duration
 
 
 def test_options_are_checked() -> None:

@@ -69,6 +69,12 @@ def register(sub: Any) -> None:
         default=None,
         help="largest speed of a maneuver's reference (m/s; default 0.8, or 1.1 × the top speed)",
     )
+    b.add_argument(
+        "--max-ball-jerk",
+        type=float,
+        default=6.0,
+        help="largest ball jerk of a limited reference (m/s³, default 6)",
+    )
     b.set_defaults(func=run_build)
     v = s.add_parser(
         "verify",
@@ -151,7 +157,12 @@ def run_build(args: argparse.Namespace) -> int:
     params = load_params(args) or BallbotParams()
     speeds = (0.5, *args.cruise_speeds)
     max_speed = args.max_speed if args.max_speed is not None else max(0.8, 1.1 * speeds[-1])
-    limits = PaletteLimits(cruise_speeds=speeds, max_speed=max_speed, reference=args.reference)
+    limits = PaletteLimits(
+        cruise_speeds=speeds,
+        max_speed=max_speed,
+        reference=args.reference,
+        max_ball_jerk=args.max_ball_jerk,
+    )
     pal = build_palette_for(
         params=params,
         gains=design_gains(params),

@@ -48,6 +48,7 @@ def _requested_differences(
     gains: ControllerGains,
     options: VerificationOptions,
     d: float,
+    primitive_options: PrimitiveSetOptions,
 ) -> list[str]:
     """What the inputs stored in ``pal`` and the requested ones differ in, in words."""
 
@@ -65,9 +66,10 @@ def _requested_differences(
     )
     if pal.d != float(d):
         out.append(f"d: {pal.d!r} m in the file, {float(d)!r} m requested")
-    if pal.primitive_options != PrimitiveSetOptions():
-        out.append("primitive set options other than this version's defaults")
-    if pal.key != palette_key(params, gains, options, d) and not out:
+    out += fields(
+        "primitive set option", pal.primitive_options.to_dict(), primitive_options.to_dict()
+    )
+    if pal.key != palette_key(params, gains, options, d, primitive_options) and not out:
         out.append("format or algorithm version")
     return out
 
@@ -78,11 +80,14 @@ def _mismatch(
     gains: ControllerGains,
     options: VerificationOptions,
     d: float,
+    primitive_options: PrimitiveSetOptions | None = None,
 ) -> str | None:
-    """Why ``pal`` cannot serve the request, or None if it can."""
-    if pal.key != palette_key(params, gains, options, d):
+    """Why ``pal`` cannot serve the request, or None if it can (``primitive_options``
+    default: the defaults)."""
+    prim = primitive_options if primitive_options is not None else PrimitiveSetOptions()
+    if pal.key != palette_key(params, gains, options, d, prim):
         return "it was built for " + "; ".join(
-            _requested_differences(pal, params, gains, options, d)
+            _requested_differences(pal, params, gains, options, d, prim)
         )
     diff = pal.gains.relative_difference(gains)
     if not diff <= GAINS_RTOL:
@@ -153,7 +158,9 @@ def load_palette(
     ----------
     path : str or Path, optional
         Force this palette file (default ``$GRACENAV_PALETTE`` if set). A forced file
-        that does not match the request is an error, never rebuilt.
+        that does not match the request is an error, never rebuilt; its primitive set
+        options (references, speed levels: ``gracenav palette build --reference
+        --cruise-speeds``) are taken as they are.
     params, gains, options, d : optional
         What the palette must have been built for. Defaults: for a forced file, what
         it was built for (its gains designed anew from its design inputs and
@@ -181,7 +188,9 @@ def load_palette(
         if gains is None:
             gains = _redesign(pal.gains) if params == pal.params else design_gains(params)
         options = options if options is not None else pal.options
-        why = _mismatch(pal, params, gains, options, d if d is not None else pal.d)
+        why = _mismatch(
+            pal, params, gains, options, d if d is not None else pal.d, pal.primitive_options
+        )
         if why is not None:
             raise CacheError(
                 f"{forced}: this palette cannot be used: {why}. Leave out --palette / "

@@ -36,6 +36,8 @@ class PaletteLimits:
         Largest speed of a maneuver's reference (m/s), above the top cruise speed.
     reference : {"nonic", "limited"}
         The maneuvers' references (:attr:`PrimitiveSetOptions.reference`).
+    max_ball_jerk : float
+        Largest ball jerk a limited reference plans (m/s³).
     verified_lean : float
         Lean within which every run of a verification must stay (rad), 8°.
     catch_speeds : tuple of float
@@ -47,6 +49,7 @@ class PaletteLimits:
     cruise_speeds: tuple[float, ...] = (0.5,)
     max_speed: float = 0.8
     reference: Literal["nonic", "limited"] = "nonic"
+    max_ball_jerk: float = 6.0
     verified_lean: float = math.radians(8.0)
     catch_speeds: tuple[float, ...] = CatchOptions().speeds
 
@@ -75,6 +78,7 @@ class PaletteLimits:
             max_lean=self.max_lean,
             max_speed=self.max_speed,
             reference=self.reference,
+            max_ball_jerk=self.max_ball_jerk,
         )
 
     def verification_options(self) -> VerificationOptions:
@@ -95,6 +99,7 @@ class PaletteLimits:
             cruise_speeds=(prim.cruise_speed, *prim.cruise_speeds),
             max_speed=prim.max_speed,
             reference=prim.reference,
+            max_ball_jerk=prim.max_ball_jerk,
             verified_lean=palette.options.lean_limit,
             catch_speeds=catch.speeds if catch is not None else (),
         )
@@ -104,9 +109,10 @@ class PaletteLimits:
         N m)."""
         speeds = ", ".join(f"{v:g}" for v in self.cruise_speeds)
         top = max(self.catch_speeds, default=0.0)
+        jerk = f" and {self.max_ball_jerk:g} m/s³" if self.reference == "limited" else ""
         return (
             f"limits: lean {math.degrees(self.max_lean):g}° planned, "
             f"{math.degrees(self.verified_lean):g}° verified; torque {torque_limit:g} N m; "
             f"cruise {speeds} m/s; references {self.reference}, at most {self.max_speed:g} "
-            f"m/s; catches from up to {top:g} m/s"
+            f"m/s{jerk}; catches from up to {top:g} m/s"
         )

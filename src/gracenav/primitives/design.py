@@ -237,13 +237,15 @@ def _plan_limited(
     params: BallbotParams,
     options: PrimitiveSetOptions,
 ) -> tuple[float, tuple[ShapePlannerResult, ShapePlannerResult]] | None:
-    """The shortest duration of ``grid`` whose limited reference (degree 15, the lean
-    and torque within the limits on the linearised model) the shape trajectory planner
+    """The shortest duration of ``grid`` whose limited reference (degree 15, the lean,
+    torque and ball jerk within the limits on the linearised model) the shape trajectory planner
     makes feasible on the 3D model in both frames, with its plans; the grid is bisected
     for the linear program's shortest duration first, then climbed until the plans
     are feasible."""
     lim = LimitedReferenceOptions(
-        max_speed=options.max_speed, max_backward_speed=options.max_backward_speed
+        max_speed=options.max_speed,
+        max_backward_speed=options.max_backward_speed,
+        max_ball_jerk=options.max_ball_jerk,
     )
 
     def reference(duration: float) -> PolynomialReference | None:
@@ -251,17 +253,12 @@ def _plan_limited(
             v0, disp, v1, params, max_lean=options.max_lean, durations=[duration], options=lim
         )
 
-    # The shortest grid duration with a reference: bisection (longer is easier, up to
-    # the backward-motion rule, which the climb below meets).
-    lo, hi = -1, len(grid) - 1
-    if reference(grid[hi]) is None:
+    first = limited_reference(
+        v0, disp, v1, params, max_lean=options.max_lean, durations=grid, options=lim
+    )
+    if first is None:
         return None
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if reference(grid[mid]) is not None:
-            hi = mid
-        else:
-            lo = mid
+    hi = next(k for k, g in enumerate(grid) if g == first.duration)
     for k in range(hi, len(grid)):
         ref = reference(grid[k])
         if ref is None:

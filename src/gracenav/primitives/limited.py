@@ -98,20 +98,28 @@ class LimitedReferenceOptions:
         Largest speed of the reference (m/s).
     max_backward_speed : float
         Largest backward speed (m/s) along an axis whose end velocities are >= 0.
+    max_ball_jerk : float or None
+        Largest jerk of the ball (m/s³), x⃛ = y⃛ − (L/κ) y⁽⁵⁾ on the linearised model
+        (the ball moves against the lean, so a lean that changes fast jerks the ball
+        however smooth y is); None: unbounded. The nonic of rest to rest over 0.5 m in
+        2.75 s reaches 5.6 m/s³.
     """
 
     degree: int = 15
     samples: int = 161
     max_speed: float = 0.8
     max_backward_speed: float = 0.02
+    max_ball_jerk: float | None = 6.0
 
     def __post_init__(self) -> None:
         if not (isinstance(self.degree, int) and self.degree >= 10):
             raise ConfigError(f"degree must be an integer >= 10, got {self.degree!r}")
         if not (isinstance(self.samples, int) and self.samples >= 11):
             raise ConfigError(f"samples must be an integer >= 11, got {self.samples!r}")
-        for name in ("max_speed", "max_backward_speed"):
+        for name in ("max_speed", "max_backward_speed", "max_ball_jerk"):
             v = getattr(self, name)
+            if name == "max_ball_jerk" and v is None:
+                continue
             if not (math.isfinite(v) and v > 0):
                 raise ConfigError(f"{name} must be positive, got {v!r}")
 
@@ -140,7 +148,7 @@ def _load_program(
     linear constraints (speed, backward motion) cannot hold."""
     n, T = options.degree, duration
     t = np.linspace(0.0, T, options.samples)
-    d = [_basis(n, T, t, o) for o in range(5)]  # y^(o)(t) per control point
+    d = [_basis(n, T, t, o) for o in range(6)]  # y^(o)(t) per control point
     kappa = flat_output_gain(params)
     lengths = flat_output_lengths(params)
     r = params.ball_radius
@@ -189,6 +197,14 @@ def _load_program(
             rows[:, -1] = -tau_cap
             a_ub.append(rows)
             b_ub.append(-sign * ct)
+    # The ball's jerk (inscribed polygon): y⁽³⁾ − (L/κ) y⁽⁵⁾ per axis.
+    if options.max_ball_jerk is not None:
+        jerk_cap = options.max_ball_jerk * math.cos(math.pi / _DIRECTIONS)
+        jx = block(0, d[3] - lengths[0] / kappa * d[5])
+        jy = block(1, d[3] - lengths[1] / kappa * d[5])
+        for ang in np.arange(_DIRECTIONS) * 2 * math.pi / _DIRECTIONS:
+            a_ub.append(math.cos(ang) * jx[0] + math.sin(ang) * jy[0])
+            b_ub.append(jerk_cap - (math.cos(ang) * jx[1] + math.sin(ang) * jy[1]))
     # Speed cap (inscribed polygon) and no backward motion.
     speed_cap = options.max_speed * math.cos(math.pi / _DIRECTIONS)
     for ang in np.arange(_DIRECTIONS) * 2 * math.pi / _DIRECTIONS:
@@ -231,15 +247,29 @@ def limited_reference(
     origin at ``start_velocity`` to ``displacement`` at ``end_velocity`` (m/s, m, m/s;
     each (2,)) whose linearised lean and torque stay within ``max_lean`` (rad) and
     ``torque_limit`` (N m; default ``params.torque_limit``), C⁴ with zero acceleration,
-    jerk and snap at both ends; None if none of them has one (see the module docstring).
+    jerk and snap at both ends; None if the longest has none (see the module docstring).
+    The durations are bisected: the first of a run of feasible ones is found when
+    feasibility does not come and go along the grid.
     """
     options = options if options is not None else LimitedReferenceOptions()
     tau = float(params.torque_limit if torque_limit is None else torque_limit)
-    v0, disp, v1 = (
-        np.asarray(a, dtype=float).reshape(2) for a in (start_velocity, displacement, end_velocity)
-    )
-    for duration in np.asarray(durations, dtype=float):
-        got = _load_program(float(duration), v0, disp, v1, params, max_lean, tau, options)
-        if got is not None and got[0] <= 1.0:
-            return PolynomialReference(float(duration), got[1])
-    return None
+    ends = (start_velocity, displacement, end_velocity)
+    v0, disp, v1 = (np.asarray(a, dtype=float).reshape(2) for a in ends)
+    grid = np.asarray(durations, dtype=float)
+
+    def at(k: int) -> PolynomialReference | None:
+        got = _load_program(float(grid[k]), v0, disp, v1, params, max_lean, tau, options)
+        return PolynomialReference(float(grid[k]), got[1]) if got and got[0] <= 1.0 else None
+
+    # Longer is easier (a reference of duration T, slowed down, loads less) up to the
+    # backward-motion rule: bisect for the shortest, then check it.
+    if grid.size == 0 or at(grid.size - 1) is None:
+        return None
+    lo, hi = -1, grid.size - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if at(mid) is not None:
+            hi = mid
+        else:
+            lo = mid
+    return at(hi)

@@ -368,6 +368,10 @@ class PrimitiveSetOptions:
         speed changes from the level below, 45° and 90° turns, lane changes), each at
         the smallest displacement of its candidates that the reference makes feasible.
         ``max_speed`` must exceed the top speed.
+    max_ball_jerk : float
+        Largest jerk of the ball (m/s³) a limited reference may plan
+        (:class:`~gracenav.primitives.limited.LimitedReferenceOptions`); the nonic's
+        rest to rest over 0.5 m reaches 5.6 m/s³.
     """
 
     cruise_speed: float = 0.5
@@ -381,6 +385,7 @@ class PrimitiveSetOptions:
     planner: ShapePlannerOptions = field(default_factory=ShapePlannerOptions)
     reference: Literal["nonic", "limited"] = "nonic"
     cruise_speeds: tuple[float, ...] = ()
+    max_ball_jerk: float = 6.0
 
     def __post_init__(self) -> None:
         speeds = tuple(float(v) for v in self.cruise_speeds)
@@ -410,6 +415,7 @@ class PrimitiveSetOptions:
             "max_backward_speed",
             "duration_step",
             "max_duration",
+            "max_ball_jerk",
         ):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
@@ -422,12 +428,14 @@ class PrimitiveSetOptions:
             )
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-dict form (for cache keys and file headers); ``reference`` only when it
-        is not the nonic, so that the keys of sets and palettes built before it existed
-        stay what they were."""
+        """Plain-dict form (for cache keys and file headers); ``reference``,
+        ``cruise_speeds`` and ``max_ball_jerk`` only away from their defaults, so that
+        the keys of sets and palettes built before they existed stay what they were."""
         out = dataclasses.asdict(self)
         if out["reference"] == "nonic":
             del out["reference"]
+        if out["max_ball_jerk"] == 6.0:
+            del out["max_ball_jerk"]
         if not out["cruise_speeds"]:
             del out["cruise_speeds"]
         else:
