@@ -428,14 +428,13 @@ class PrimitiveSetOptions:
             )
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-dict form (for cache keys and file headers); ``reference``,
-        ``cruise_speeds`` and ``max_ball_jerk`` only away from their defaults, so that
-        the keys of sets and palettes built before they existed stay what they were."""
+        """Plain-dict form (for cache keys and file headers); ``reference`` and
+        ``max_ball_jerk`` only for limited references, ``cruise_speeds`` only when there
+        are any, so that the keys of sets and palettes built before they existed stay
+        what they were."""
         out = dataclasses.asdict(self)
-        if out["reference"] == "nonic":
-            del out["reference"]
-        if out["max_ball_jerk"] == 6.0:
-            del out["max_ball_jerk"]
+        if out["reference"] == "nonic":  # the ball jerk bound is the limited references'
+            del out["reference"], out["max_ball_jerk"]
         if not out["cruise_speeds"]:
             del out["cruise_speeds"]
         else:
