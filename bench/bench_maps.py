@@ -158,8 +158,9 @@ def main() -> None:
                 path = Path(tmp) / f"{kind}_{i}.yaml"
                 save_ros_map(world, path, image_format="png")
                 paths.append(path)
+            by_planner: dict[str, list[dict[str, Any]]] = {}
             for planner in ("gracenav", "decoupled"):
-                rows = [
+                rows = by_planner[planner] = [
                     run_one(p, s, g, planner, args.max_halvings)
                     for p, (_, s, g) in zip(paths, drawn, strict=True)
                 ]
@@ -167,11 +168,25 @@ def main() -> None:
                 refused = collections.Counter(r["refused"] for r in rows if "refused" in r)
                 contacts = sum(1 for r in rows if r.get("contact"))
                 times = [r["time"] for r in rows if r.get("reached")]
-                med = f"{statistics.median(times):.1f}" if times else "-"
+                med = f"{statistics.median(times):.2f}" if times else "-"
                 wall = statistics.median(r["wall"] for r in rows) if rows else float("nan")
                 print(
                     f"{kind:10s} {planner:10s} {len(rows):6d} {reached:8d} "
                     f"{sum(refused.values()):8d} {contacts:9d} {med:>14s} {wall:14.1f}"
+                )
+            g_rows, d_rows = by_planner["gracenav"], by_planner["decoupled"]
+            g_t = [r["time"] for r in g_rows if r.get("reached")]
+            d_t = [r["time"] for r in d_rows if r.get("reached")]
+            both = [
+                g["time"] / d["time"]
+                for g, d in zip(g_rows, d_rows, strict=True)
+                if g.get("reached") and d.get("reached")
+            ]
+            if g_t and d_t:
+                print(
+                    f"{kind:10s} time ratio gracenav / decoupled: medians "
+                    f"{statistics.median(g_t) / statistics.median(d_t):.3f}, median of the "
+                    f"{len(both)} tasks both reached {statistics.median(both):.3f}"
                 )
                 for why, count in refused.most_common():
                     print(f"    refused {count}x: {why}")
