@@ -28,6 +28,11 @@ def test_simulate_balance_writes_csv_and_png(tmp_path, capsys) -> None:
         ["simulate", "walk", "--out", "x"],
         ["plot", "domain", "no_such_policy", "--out", "x.png"],
         ["palette", "show", "--file", "/nonexistent.npz"],
+        # Limits refused before anything is planned: not ascending from 0.5 m/s, a
+        # reference speed cap below the top speed.
+        ["palette", "build", "--cruise-speeds", "0.4", "--out", "x.npz"],
+        ["palette", "build", "--cruise-speeds", "1.0", "--max-speed", "0.9", "--out", "x.npz"],
+        ["palette", "build", "--reference", "cubic", "--out", "x.npz"],
         ["frobnicate"],
     ],
 )
@@ -61,3 +66,4 @@ def test_palette_show(capsys) -> None:
     out = capsys.readouterr().out
     assert "rest_to_cruise_x_2_0" in out and "capture[S=6G]" in out
     assert "(40 primitives and their larger-domain variants)" in out
+    assert "limits: lean 4.5° planned, 8° verified; torque 60 N m; cruise 0.5 m/s" in out
