@@ -292,3 +292,24 @@ def test_a_run_on_its_region_reaches_the_goal(palette: Palette) -> None:
     (x0, y0), (x1, y1) = region["bounds_m"]
     assert (x1 - x0) * (y1 - y0) < 0.5 * 34.0 * 30.0
     assert x0 <= 7.0 - 5.0 + 0.5 and x1 >= 12.0 + 5.0 - 0.05
+
+
+def test_a_big_region_takes_fewer_halvings_when_they_are_chosen(
+    palette: Palette, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import gracenav.scenarios.region as region_module
+
+    doc = copy.deepcopy(GAP)
+    del doc["planner"]["max_halvings"]
+    doc["task"] = {
+        "kind": "point_to_point",
+        "goal": [12.0, 22.0, 0.0, 0.0],
+        "starts": [[7.0, 20.0, 0.0, 0.0]],
+    }
+    assert prepare_library(_scenario(doc), palette).max_halvings == 1
+    monkeypatch.setattr(region_module, "REGION_POLICIES", 1000)
+    capped = prepare_library(_scenario(doc), palette)
+    assert (capped.region, capped.max_halvings) == ("task", 0)
+    assert capped.library.spacing == pytest.approx(palette.d, abs=1e-12)
+    # Halvings the scenario gives are kept.
+    assert prepare_library(_scenario(doc, max_halvings=1), palette).max_halvings == 1

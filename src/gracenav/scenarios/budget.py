@@ -208,6 +208,7 @@ def choose_halvings(
     source: str = "scenario",
     keys: tuple[str, str] = ("planner.max_halvings", "planner.memory_limit_gib"),
     whole_map: Any = None,
+    policy_cap: float | None = None,
 ) -> MemoryEstimate:
     """The halvings of a library that fit ``memory_limit`` bytes, with their estimate.
 
@@ -228,6 +229,10 @@ def choose_halvings(
         or command-line options (``--max-halvings``, ``--memory-limit-gib``).
     whole_map : WorldMap, optional
         As :func:`estimate_run_memory`.
+    policy_cap : float, optional
+        With ``max_halvings`` None, also fewer halvings while the estimated policies
+        exceed this (never fewer than none): a task's region takes a coarser lattice
+        rather than a later first command (:data:`gracenav.scenarios.region.REGION_POLICIES`).
 
     Raises
     ------
@@ -253,6 +258,15 @@ def choose_halvings(
             whole_map=whole_map,
         )
         if est.bytes <= memory_limit:
+            capped = (
+                max_halvings is None
+                and policy_cap is not None
+                and h > 0
+                and est.policies is not None
+                and est.policies > policy_cap
+            )
+            if capped:
+                continue
             if first is None or max_halvings is None:
                 return est
             fit = (

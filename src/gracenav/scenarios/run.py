@@ -15,6 +15,7 @@ import numpy as np
 from gracenav.errors import PlanningError
 from gracenav.params import BallbotParams
 from gracenav.planning.repair import ObstacleSensing
+from gracenav.scenarios import region as region_module
 from gracenav.scenarios.region import resolve_region, task_region, task_waypoints
 from gracenav.scenarios.runs import ScenarioResult, _run_starts
 from gracenav.scenarios.spec import (
@@ -117,7 +118,8 @@ def prepare_library(scenario: Scenario, palette: Any | None = None) -> PreparedL
         where, region = (world_map, "map") if found is None else (found, "task")
     # Within the region the checks see what they see in the whole map: its edge is at
     # least region_margin >= footprint + 1 m from every start and goal.
-    halvings = check_scenario(scenario, where, palette, whole_map=world_map)
+    cap = region_module.REGION_POLICIES if region == "task" else None
+    halvings = check_scenario(scenario, where, palette, whole_map=world_map, policy_cap=cap)
     t0 = time.perf_counter()
     library = build_library(
         palette,

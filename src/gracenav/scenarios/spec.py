@@ -468,7 +468,12 @@ def load_scenario(path: str | Path) -> Scenario:
 
 
 def check_scenario(
-    scenario: Scenario, world_map: Any, palette: Any, *, whole_map: Any = None
+    scenario: Scenario,
+    world_map: Any,
+    palette: Any,
+    *,
+    whole_map: Any = None,
+    policy_cap: float | None = None,
 ) -> int:
     """Check a scenario against its loaded map and the palette before any heavy work,
     and choose its library's halvings.
@@ -480,7 +485,7 @@ def check_scenario(
 
     ``world_map`` is the map the library is built on; ``whole_map``, when that is a
     region of it (:mod:`gracenav.scenarios.region`), the map whose cells the run holds
-    too.
+    too; ``policy_cap``: see :func:`~gracenav.scenarios.budget.choose_halvings`.
 
     Returns
     -------
@@ -509,6 +514,7 @@ def check_scenario(
             speed_clearance=scenario.speed_clearance,
             source=scenario.source,
             whole_map=whole_map,
+            policy_cap=policy_cap,
         ).halvings
     _check_task_states(scenario, world_map, palette)
     return halvings
