@@ -48,8 +48,12 @@ DOMAIN = str(51 + os.getpid() % 50)
 @pytest.fixture
 def ros_env(monkeypatch: pytest.MonkeyPatch) -> dict[str, str]:
     monkeypatch.setenv("ROS_DOMAIN_ID", DOMAIN)
+    # The test's DDS traffic stays on this machine whatever the environment says.
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    monkeypatch.setenv("ROS_LOCALHOST_ONLY", "1")
     env = dict(os.environ)
     local_dds_environment(env)
+    assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
     for key, value in env.items():
         if key.startswith(("ROS_", "RMW_")):
             monkeypatch.setenv(key, value)
