@@ -260,7 +260,7 @@ def _plan_limited(
         return None
     hi = next(k for k, g in enumerate(grid) if g == first.duration)
     for k in range(hi, len(grid)):
-        ref = reference(grid[k])
+        ref = first if k == hi else reference(grid[k])
         if ref is None:
             continue
         pair = _plan_pair(ref, v0, disp, v1, params, options)

@@ -257,9 +257,14 @@ def limited_reference(
     v0, disp, v1 = (np.asarray(a, dtype=float).reshape(2) for a in ends)
     grid = np.asarray(durations, dtype=float)
 
+    solved: dict[int, PolynomialReference | None] = {}
+
     def at(k: int) -> PolynomialReference | None:
-        got = _load_program(float(grid[k]), v0, disp, v1, params, max_lean, tau, options)
-        return PolynomialReference(float(grid[k]), got[1]) if got and got[0] <= 1.0 else None
+        if k not in solved:
+            got = _load_program(float(grid[k]), v0, disp, v1, params, max_lean, tau, options)
+            ok = got is not None and got[0] <= 1.0
+            solved[k] = PolynomialReference(float(grid[k]), got[1]) if ok and got else None
+        return solved[k]
 
     # Longer is easier (a reference of duration T, slowed down, loads less) up to the
     # backward-motion rule: bisect for the shortest, then check it.
