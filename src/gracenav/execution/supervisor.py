@@ -626,7 +626,7 @@ class Supervisor:
                 nxt = self.capture_row
                 if not hc.library.policy(nxt).start_domain.contains(p):
                     return EventReason.NOT_IN_GOAL, hc.best_policy(p, self.tree)
-                return EventReason.GRACEFUL, nxt
+                return self._past_hold(nxt, p)
             return EventReason.NOT_IN_GOAL, hc.best_policy(p, self.tree)
         if current == TERMINAL and isinstance(term, ShiftTerminal):
             return self._next_stage(term, p, near_goal)
@@ -679,7 +679,44 @@ class Supervisor:
         nxt = int(self.tree.next_policy[current])
         if nxt < 0 or not hc.library.policy(nxt).start_domain.contains(p):
             return EventReason.NOT_IN_GOAL, hc.best_policy(p, self.tree)
-        return EventReason.GRACEFUL, nxt
+        return self._past_hold(nxt, p)
+
+    def _past_hold(self, row: int, p: FloatArray) -> tuple[EventReason, int]:
+        """The switch into rest trim ``row`` (its S holds ``p``), or past it.
+
+        A rest trim on the way holds the robot where the policy after it starts at
+        rest; when that policy's S (the terminal's, at a goal off the lattice) already
+        holds the state, the hold is skipped and it starts now: the same rule as every
+        switch (a verified policy whose S contains the state), one rest trim's
+        duration sooner. Not while moving obstacles are tracked or the robot holds for
+        a blocked way (there the hold is where the robot waits), nor for other rows.
+        """
+        hc = self.hc
+        if (
+            not self.options.skip_holds
+            or self.dyn is not None
+            or self.holding
+            or not 0 <= row < len(hc.library)
+        ):
+            return EventReason.GRACEFUL, row
+        pol = hc.library.policy(row).policy
+        if pol.primitive.kind is not PrimitiveKind.REST or pol.capture:
+            return EventReason.GRACEFUL, row
+        if row == self.sequence[self.k_goal]:
+            term = self.terminals[self.k_goal]
+            if (
+                term is not None
+                and self.loops <= 1
+                and term.approach == row
+                and self._terminal_starts(term, p)
+            ):
+                self.term_stage = 0
+                return EventReason.TERMINAL, TERMINAL
+            return EventReason.GRACEFUL, row
+        nxt = int(self.tree.next_policy[row])
+        if nxt >= 0 and nxt != row and hc.library.policy(nxt).start_domain.contains(p):
+            return EventReason.GRACEFUL, nxt
+        return EventReason.GRACEFUL, row
 
     # -- the end at a goal off the lattice ------------------------------------------
     def _terminal_starts(self, term: Terminal, p: FloatArray) -> bool:

@@ -157,6 +157,11 @@ class ExecutionOptions:
     planning_latency : float or None
         With ``"modelled"``: the latency (s) of every computation, or None for its own
         wall time on this machine (runs are then not reproducible).
+    skip_holds : bool
+        Start the policy after a rest trim on the way (or the terminal after the goal's
+        rest trim) as soon as its start domain holds the state, instead of holding the
+        rest trim for its whole duration first (a gracenav extension; False runs every
+        rest trim of the tree, as the paper does).
     """
 
     plant: PlantKind = "model3d"
@@ -170,6 +175,7 @@ class ExecutionOptions:
     sensing: ObstacleSensing = field(default_factory=ObstacleSensing)
     planning: PlanningMode = "instant"
     planning_latency: float | None = None
+    skip_holds: bool = True
 
     def __post_init__(self) -> None:
         if self.plant not in PLANT_KINDS:
