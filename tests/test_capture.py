@@ -10,7 +10,7 @@ import pytest
 
 from gracenav import BallbotParams, ConfigError
 from gracenav.errors import PlanningError
-from gracenav.execution import EventReason, HybridController, TaskStatus
+from gracenav.execution import EventReason, ExecutionOptions, HybridController, TaskStatus
 from gracenav.library import build_library
 from gracenav.palette import REGULATOR_NAME
 from gracenav.planning.graph import build_graph, gracefully_prepares
@@ -260,7 +260,14 @@ def test_goals_off_the_lattice_are_reached_within_a_millimetre(box_room_controll
     reach = term.policy.outer_factors[0] * term.policy.start_radii.position
     assert hc.library.world_map.clearance(g[None, :2])[0] >= hc.library.footprint_radius + reach
     start = [4.0, 4.0, 0.0, 0.0] if goal[0] < 2.5 else [1.0, 1.0, 0.0, 0.0]
-    ep = hc.run(state_from_position(start, PARAMS.ball_radius), [g])
+    x0 = state_from_position(start, PARAMS.ball_radius)
+    # By default the task ends once the ball is settled within 1 cm (averaged over
+    # SETTLE_WINDOW ticks); asked for 1 mm and 1 mm/s, the same regulator gets there.
+    ep = hc.run(x0, [g])
+    p = ep.position_state[-1]
+    assert ep.status is TaskStatus.GOAL_REACHED
+    assert np.hypot(*(p[:2] - g[:2])) <= 0.01 and np.hypot(*p[2:]) <= 0.05
+    ep = hc.run(x0, [g], options=ExecutionOptions(settle_tolerance=1e-3, goal_tolerance=1e-3))
     assert ep.status is TaskStatus.GOAL_REACHED
     assert ep.events[-1].reason is EventReason.TERMINAL
     p = ep.position_state[-1]

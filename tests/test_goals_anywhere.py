@@ -240,7 +240,7 @@ def test_a_way_that_opens_later_is_taken(palette) -> None:
     result = run_scenario(scenario, palette=_without_shifts(palette))
     run, ep = result.runs[0], result.episodes[0]
     assert run.reached_goal and not run.contact
-    assert run.final_error_m is not None and run.final_error_m <= 1e-3
+    assert run.final_error_m is not None and run.final_error_m <= 0.01  # settle_tolerance
     reasons = [e.reason for e in ep.events]
     assert EventReason.BLOCKED in reasons and EventReason.RESUMED in reasons
     assert ep.events[-1].reason is EventReason.TERMINAL and ep.time[-1] > 20.0

@@ -113,3 +113,29 @@ def test_skipped_holds_switch_into_domains_that_hold_the_state(
 def test_holds_are_skipped_by_default() -> None:
     assert ExecutionOptions().skip_holds is True
     assert dataclasses.replace(ExecutionOptions(), skip_holds=False).skip_holds is False
+
+
+@pytest.mark.slow
+def test_a_settled_terminal_ends_the_task_without_changing_the_motion(
+    controller: HybridController,
+) -> None:
+    """Ending at the first settled tick of the terminal regulator (within 1 cm, over
+    0.125 s) only moves the end: the states are those of the run that holds the
+    regulator to its end, which goes on from there."""
+    hc = controller
+    early = _run(hc, skip=True)
+    x0 = state_from_position(np.array([*START, 0.0, 0.0]), hc.radius)
+    late = hc.run(
+        x0,
+        [np.array([*GOAL, 0.0, 0.0])],
+        options=ExecutionOptions(max_time=60.0, settle_tolerance=1e-6),
+    )
+    assert early.events[-1].to_policy == TERMINAL and late.events[-1].to_policy == TERMINAL
+    n = early.states.shape[0]
+    assert late.states.shape[0] > n + 1024  # a second or more later
+    np.testing.assert_array_equal(early.states, late.states[:n])
+    p = position_state(early.states[-1], hc.radius)
+    assert np.hypot(*(p[:2] - np.array(GOAL))) <= 0.01 + 1e-3  # window mean within 1 cm
+    assert np.hypot(*p[2:]) <= 0.05
+    q = position_state(late.states[-1], hc.radius)
+    assert np.hypot(*(q[:2] - np.array(GOAL))) < np.hypot(*(p[:2] - np.array(GOAL)))

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gracenav.control.law import TrackingLaw
-from gracenav.execution.capture import CapturePlan, PlacedPolicy, ShiftTerminal
+from gracenav.execution.capture import CapturePlan, PlacedPolicy, ShiftTerminal, TerminalPolicy
 from gracenav.execution.episode import ExecutionLog
 from gracenav.execution.jobs import Job
 from gracenav.execution.obstacles import ObstacleTracker
@@ -72,6 +72,10 @@ CAPTURE_LEAD = 0.05
 #: the way to it (:meth:`Goals.alternatives`) are tried with the trees toward at most
 #: this many approach trims.
 RETARGET_TREES = 16
+#: Ticks (0.125 s) over which the ball's measured position state is averaged before a
+#: terminal regulator ends the task (ExecutionOptions.settle_tolerance): the decoupled
+#: baseline tests its goal at this period.
+SETTLE_WINDOW = 128
 
 _NO_CENTER = np.zeros((0,))
 _NO_SHAPE = np.zeros((0, 0))
@@ -183,6 +187,9 @@ class Supervisor:
         self.captured: list[PlacedPolicy] = []
         self.capture_plans: list[tuple[float, CapturePlan]] = []
         self.capture_row = -1
+        #: The terminal regulator's last position states (see _settled).
+        self.settle_buf = np.zeros((SETTLE_WINDOW, 4))
+        self.settle_n = 0
         if capture_plan is not None:
             self.capture_plans.append((0.0, capture_plan))
             self.captured, self.capture_row = list(capture_plan.policies), capture_plan.rest_row
@@ -261,6 +268,13 @@ class Supervisor:
                 break
             tau, val = seg.command(self.law, x)
             exited = val > 1.0
+            if seg.policy != TERMINAL:
+                self.settle_n = 0
+            elif not exited and self._settled(x):
+                self.segment = None
+                self.goals_reached.append((self.t, self.k_goal))
+                self._finish(TaskStatus.GOAL_REACHED, hold_xy=self.goal_states[self.k_goal][:2])
+                break
             if exited or k == seg.n:
                 self.segment = None
                 if seg.balance:
@@ -288,10 +302,35 @@ class Supervisor:
         """Task time (s) of the current tick: k/1024 exactly."""
         return self.ticks * self.dt
 
-    def _finish(self, status: TaskStatus) -> None:
+    def _finish(self, status: TaskStatus, hold_xy: FloatArray | None = None) -> None:
+        """End the task; afterwards the robot balances at ``hold_xy`` (default: where
+        it is)."""
         self.status = status
-        hold = state_from_position(np.r_[position_state(self.x, self.r)[:2], 0.0, 0.0], self.r)
+        xy = position_state(self.x, self.r)[:2] if hold_xy is None else hold_xy
+        hold = state_from_position(np.r_[xy, 0.0, 0.0], self.r)
         self.hold_final = hold if status is not TaskStatus.FELL else None
+
+    def _settled(self, x: FloatArray) -> bool:
+        """Whether a terminal regulator may end the task at this tick: the last goal's
+        regulator (its reference is the goal at rest, as the hold after the end), and
+        the ball, averaged over the last :data:`SETTLE_WINDOW` ticks of the regulator
+        (the measurement's noise averages out), within ``settle_tolerance`` of the goal
+        and slower than ``goal_tolerance``.
+        """
+        term = self.terminals[self.k_goal]
+        if not isinstance(term, TerminalPolicy) or self.k_goal + 1 < len(self.sequence):
+            return False
+        self.settle_buf[self.settle_n % SETTLE_WINDOW] = position_state(x, self.r)
+        self.settle_n += 1
+        if self.settle_n < SETTLE_WINDOW:
+            return False
+        g = self.goal_states[self.k_goal]
+        p = self.settle_buf.mean(axis=0)
+        opts = self.options
+        return bool(
+            np.hypot(*(p[:2] - g[:2])) <= min(opts.settle_tolerance, opts.goal_tolerance)
+            and np.hypot(*(p[2:] - g[2:])) <= opts.goal_tolerance
+        )
 
     def _after_end(self, x: FloatArray) -> Command:
         """After the task: balance where it ended (nothing after a fall)."""

@@ -157,6 +157,13 @@ class ExecutionOptions:
     planning_latency : float or None
         With ``"modelled"``: the latency (s) of every computation, or None for its own
         wall time on this machine (runs are then not reproducible).
+    settle_tolerance : float
+        While the terminal regulator holds the robot at a goal off the lattice, the task
+        ends at the first tick the ball is within this distance (m) of the goal (and
+        within ``goal_tolerance`` of it, whichever is smaller) and slower than
+        ``goal_tolerance``, instead of at the end of the regulator's run. The regulator's
+        reference is the goal at rest, and the robot balances about the goal with the
+        same law after the end: the motion is the same, the task ends when it is there.
     skip_holds : bool
         Start the policy after a rest trim on the way (or the terminal after the goal's
         rest trim) as soon as its start domain holds the state, instead of holding the
@@ -175,6 +182,7 @@ class ExecutionOptions:
     sensing: ObstacleSensing = field(default_factory=ObstacleSensing)
     planning: PlanningMode = "instant"
     planning_latency: float | None = None
+    settle_tolerance: float = 0.01
     skip_holds: bool = True
 
     def __post_init__(self) -> None:
@@ -186,6 +194,10 @@ class ExecutionOptions:
             raise ConfigError(f"max_time must be positive, got {self.max_time!r}")
         if not self.goal_tolerance > 0:
             raise ConfigError(f"goal_tolerance must be positive, got {self.goal_tolerance!r}")
+        if not self.settle_tolerance > 0:
+            raise ConfigError(
+                f"settle_tolerance must be positive (m), got {self.settle_tolerance!r}"
+            )
         if self.planning not in ("instant", "threaded", "modelled"):
             raise ConfigError(
                 f"planning must be 'instant', 'threaded' or 'modelled', got {self.planning!r}"
