@@ -274,3 +274,22 @@ def test_palette_limits_give_the_default_options_and_read_back_the_shipped_palet
         PaletteLimits(max_lean=math.radians(9.0))
     with pytest.raises(ConfigError, match="ascending"):
         PaletteLimits(cruise_speeds=(0.5, 0.4))
+
+
+def test_catches_reach_past_the_top_cruise_speed() -> None:
+    """A palette with speed levels gets catches up to 0.3 m/s above its top cruise
+    speed (a 16 N s push adds about 0.35 m/s; a catch serves 0.16 m/s around its own),
+    in the default steps; the one-speed palette keeps the default catches."""
+    from gracenav.palette import PaletteLimits, catch_speeds_for
+    from gracenav.palette.limits import CATCH_HEADROOM
+    from gracenav.policies import CatchOptions
+
+    assert catch_speeds_for((0.5,)) == CatchOptions().speeds
+    fast = catch_speeds_for((0.5, 1.0, 1.2))
+    assert fast[: len(CatchOptions().speeds)] == CatchOptions().speeds
+    assert fast[-1] == pytest.approx(1.2 + CATCH_HEADROOM, abs=1e-9)
+    assert np.allclose(np.diff(fast), 0.1)
+    limits = PaletteLimits(cruise_speeds=(0.5, 1.0, 1.2), max_speed=1.32, catch_speeds=fast)
+    catch = limits.verification_options().catch
+    assert catch is not None and catch.speeds == fast
+    assert "catches from up to 1.5 m/s" in limits.describe(60.0)

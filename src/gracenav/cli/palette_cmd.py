@@ -61,7 +61,10 @@ def register(sub: Any) -> None:
         nargs="+",
         default=(),
         metavar="V",
-        help="further cruise speeds (m/s) above 0.5, ascending, each with its maneuvers",
+        help=(
+            "further cruise speeds (m/s) above 0.5, ascending, each with its maneuvers; "
+            "the catches then reach 0.3 m/s above the top one (at least 1.2 m/s)"
+        ),
     )
     b.add_argument(
         "--max-speed",
@@ -147,7 +150,12 @@ def run_build(args: argparse.Namespace) -> int:
     from gracenav import BallbotParams
     from gracenav.control import design_gains
     from gracenav.errors import ConfigError
-    from gracenav.palette import PaletteLimits, build_palette_for, cached_palette_path
+    from gracenav.palette import (
+        PaletteLimits,
+        build_palette_for,
+        cached_palette_path,
+        catch_speeds_for,
+    )
 
     if args.processes < 1:
         raise ConfigError(f"--processes must be >= 1, got {args.processes}")
@@ -159,6 +167,7 @@ def run_build(args: argparse.Namespace) -> int:
     max_speed = args.max_speed if args.max_speed is not None else max(0.8, 1.1 * speeds[-1])
     limits = PaletteLimits(
         cruise_speeds=speeds,
+        catch_speeds=catch_speeds_for(speeds),
         max_speed=max_speed,
         reference=args.reference,
         max_ball_jerk=args.max_ball_jerk,

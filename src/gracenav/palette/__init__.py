@@ -28,7 +28,7 @@ from gracenav.palette.files import (
     load_palette,
     shipped_palette_path,
 )
-from gracenav.palette.limits import PaletteLimits
+from gracenav.palette.limits import PaletteLimits, catch_speeds_for
 from gracenav.palette.palette import (
     PALETTE_FORMAT,
     REGULATOR_NAME,
@@ -46,6 +46,7 @@ __all__ = [
     "build_palette",
     "build_palette_for",
     "cached_palette_path",
+    "catch_speeds_for",
     "load_palette",
     "palette_key",
     "shipped_palette_path",

@@ -16,7 +16,26 @@ from gracenav.primitives import PrimitiveSetOptions
 if TYPE_CHECKING:
     from gracenav.palette.palette import Palette
 
-__all__ = ["PaletteLimits"]
+__all__ = ["PaletteLimits", "catch_speeds_for"]
+
+#: Speed (m/s) the catches reach above the top cruise speed: a push of the bench's
+#: largest impulse (16 N s) adds up to about 0.35 m/s to a cruising robot, and a
+#: catch serves states within 0.16 m/s of its own speed.
+CATCH_HEADROOM = 0.3
+
+
+def catch_speeds_for(cruise_speeds: tuple[float, ...]) -> tuple[float, ...]:
+    """The catches' speeds (m/s) for a palette cruising at ``cruise_speeds``: the
+    default ones (0 to 1.2 m/s in steps of 0.1), continued in steps of 0.1 m/s up to
+    :data:`CATCH_HEADROOM` above the top cruise speed."""
+    base = CatchOptions().speeds
+    top = round(max(cruise_speeds, default=0.0) + CATCH_HEADROOM, 6)
+    extra: list[float] = []
+    v = base[-1]
+    while v + 1e-9 < top:
+        v = round(v + 0.1, 6)
+        extra.append(v)
+    return (*base, *extra)
 
 
 @dataclass(frozen=True)
