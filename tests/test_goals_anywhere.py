@@ -63,7 +63,13 @@ def test_a_goal_between_posts_is_reached_through_shifts_without_contact(forest: 
     goal, then a rest hold there, brings the robot onto it."""
     goal = (13.0, 2.25)
     scenario = parse_scenario(
-        _task({"ros_map": str(forest)}, goal, (15.0, 2.25)), source="forest.yaml"
+        _task(
+            {"ros_map": str(forest)},
+            goal,
+            (15.0, 2.25),
+            planner={"cost": "time", "lattice_anchor": "map"},  # the goal off the lattice
+        ),
+        source="forest.yaml",
     )
     prepared = prepare_library(scenario)
     lib = prepared.library

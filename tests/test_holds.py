@@ -51,7 +51,8 @@ def controller() -> HybridController:
             "name": "holds",
             "map": ROOM,
             "robot": {"footprint_radius": 0.2},
-            "planner": {"cost": "time", "max_halvings": 1},
+            # The map's lattice: the goal is off it, and a terminal ends the task.
+            "planner": {"cost": "time", "max_halvings": 1, "lattice_anchor": "map"},
             "task": {
                 "kind": "point_to_point",
                 "goal": [*GOAL, 0.0, 0.0],
@@ -139,3 +140,53 @@ def test_a_settled_terminal_ends_the_task_without_changing_the_motion(
     assert np.hypot(*p[2:]) <= 0.05
     q = position_state(late.states[-1], hc.radius)
     assert np.hypot(*(q[:2] - np.array(GOAL))) < np.hypot(*(p[:2] - np.array(GOAL)))
+
+
+def test_a_lattice_through_the_goal_passes_through_it_at_every_spacing() -> None:
+    from gracenav.library import lattice_origin
+    from gracenav.world import WorldMap
+
+    world = WorldMap.from_shapes(((0.0, 0.0), (6.0, 6.0)), [], resolution=0.05)
+    for spacing in (0.5, 0.25, 0.125):
+        for anchor in ((3.475, 3.975), (0.0, 0.0), (5.999999999999, 2.5), (0.3, 5.9)):
+            o = lattice_origin(world, spacing, anchor)
+            assert np.all(o >= 0.0) and np.all(o < spacing)
+            k = (np.asarray(anchor) - o) / spacing
+            np.testing.assert_allclose(k, np.round(k), atol=1e-9)
+    np.testing.assert_array_equal(lattice_origin(world, 0.5), [0.0, 0.0])
+
+
+@pytest.mark.slow
+def test_a_goal_off_the_map_lattice_ends_on_a_rest_trim_of_the_goal_lattice() -> None:
+    """planner.lattice_anchor auto (the default for point-to-point tasks) puts the goal
+    on the lattice: the run ends on a rest trim at the goal, with no terminal, and
+    sooner than on the map's lattice, where it needs one."""
+    from gracenav.scenarios import run_scenario
+
+    def doc(anchor: str) -> dict:
+        return {
+            "name": "anchor",
+            "map": ROOM,
+            "robot": {"footprint_radius": 0.2},
+            "planner": {"cost": "time", "max_halvings": 1, "lattice_anchor": anchor},
+            "task": {
+                "kind": "point_to_point",
+                "goal": [*GOAL, 0.0, 0.0],
+                "starts": [[*START, 0.0, 0.0]],
+            },
+            "simulation": {"max_time": 60},
+        }
+
+    on_goal = run_scenario(parse_scenario(doc("auto"), source="auto"))
+    on_map = run_scenario(parse_scenario(doc("map"), source="map"))
+    for result in (on_goal, on_map):
+        run = result.runs[0]
+        assert run.reached_goal and not run.contact
+        assert run.final_error_m is not None and run.final_error_m <= 0.01 + 1e-3
+    lib = on_goal.library
+    np.testing.assert_allclose((np.array(GOAL) - lib.origin) / lib.spacing % 1.0, 0.0, atol=1e-9)
+    last = on_goal.episodes[0].events[-1]
+    assert last.to_policy >= 0 and last.to_policy != TERMINAL
+    np.testing.assert_allclose(lib.end_state[last.to_policy], [*GOAL, 0.0, 0.0], atol=1e-9)
+    assert on_map.episodes[0].events[-1].to_policy == TERMINAL
+    assert on_goal.runs[0].time_s < on_map.runs[0].time_s

@@ -247,7 +247,12 @@ def test_library_key_holds_the_task_only_for_a_region(palette: Palette) -> None:
     a, b = copy.deepcopy(GAP), copy.deepcopy(GAP)
     b["task"]["goal"] = [8.0, 20.0, 0.0, 0.0]
     assert library_key(_scenario(a), palette) != library_key(_scenario(b), palette)
-    assert library_key(_scenario(a, region="map"), palette) == library_key(
+    # The whole map's library on the map's lattice serves every task; on the lattice
+    # through the goal (the default for point-to-point tasks), each goal its own.
+    assert library_key(_scenario(a, region="map", lattice_anchor="map"), palette) == (
+        library_key(_scenario(b, region="map", lattice_anchor="map"), palette)
+    )
+    assert library_key(_scenario(a, region="map"), palette) != library_key(
         _scenario(b, region="map"), palette
     )
 

@@ -176,8 +176,14 @@ class Goals:
 
     def terminal(self, goal: ArrayLike, goal_id: int) -> Terminal | None:
         """The terminal a task toward ``goal`` ends with, if ``goal_id`` is the approach
-        trim :meth:`goal_policy` chose for it."""
-        terms = self._terminals.get(tuple(float(v) for v in np.asarray(goal, dtype=float)))
+        trim :meth:`goal_policy` chose for it; None when that trim ends at the goal (a
+        goal on the lattice needs no terminal)."""
+        g = np.asarray(goal, dtype=float)
+        if 0 <= goal_id < len(self.library) and bool(
+            np.linalg.norm(self.library.end_state[goal_id] - g) <= _ON_LATTICE
+        ):
+            return None
+        terms = self._terminals.get(tuple(float(v) for v in g))
         for term in terms or ():
             if term.approach == goal_id:
                 return term

@@ -190,6 +190,7 @@ class Supervisor:
         #: The terminal regulator's last position states (see _settled).
         self.settle_buf = np.zeros((SETTLE_WINDOW, 4))
         self.settle_n = 0
+        self.settling = False
         if capture_plan is not None:
             self.capture_plans.append((0.0, capture_plan))
             self.captured, self.capture_row = list(capture_plan.policies), capture_plan.rest_row
@@ -268,7 +269,7 @@ class Supervisor:
                 break
             tau, val = seg.command(self.law, x)
             exited = val > 1.0
-            if seg.policy != TERMINAL:
+            if not self.settling:
                 self.settle_n = 0
             elif not exited and self._settled(x):
                 self.segment = None
@@ -310,16 +311,32 @@ class Supervisor:
         hold = state_from_position(np.r_[xy, 0.0, 0.0], self.r)
         self.hold_final = hold if status is not TaskStatus.FELL else None
 
+    def _settles(self, current: int, is_goal: bool) -> bool:
+        """Whether the policy starting may end the task before its own end
+        (:meth:`_settled`): the last goal's terminal regulator, or the rest trim that
+        ends at the last goal; the reference of either is the goal at rest, as is the
+        hold after the end."""
+        if self.k_goal + 1 < len(self.sequence) or self.loops > 1:
+            return False
+        term = self.terminals[self.k_goal]
+        if current == TERMINAL:
+            return isinstance(term, TerminalPolicy)
+        if not is_goal or term is not None or current < 0:
+            return False
+        lib = self.hc.library
+        g = self.goal_states[self.k_goal]
+        return bool(
+            lib.policy(current).policy.primitive.kind is PrimitiveKind.REST
+            and np.all(g[2:] == 0.0)
+            and np.linalg.norm(lib.end_state[current] - g) <= 1e-9
+        )
+
     def _settled(self, x: FloatArray) -> bool:
-        """Whether a terminal regulator may end the task at this tick: the last goal's
-        regulator (its reference is the goal at rest, as the hold after the end), and
-        the ball, averaged over the last :data:`SETTLE_WINDOW` ticks of the regulator
+        """Whether a policy that settles (:meth:`_settles`) may end the task at this
+        tick: the ball, averaged over the last :data:`SETTLE_WINDOW` ticks of the regulator
         (the measurement's noise averages out), within ``settle_tolerance`` of the goal
         and slower than ``goal_tolerance``.
         """
-        term = self.terminals[self.k_goal]
-        if not isinstance(term, TerminalPolicy) or self.k_goal + 1 < len(self.sequence):
-            return False
         self.settle_buf[self.settle_n % SETTLE_WINDOW] = position_state(x, self.r)
         self.settle_n += 1
         if self.settle_n < SETTLE_WINDOW:
@@ -383,6 +400,7 @@ class Supervisor:
             inst = hc.library.policy(current)
             prim = inst.policy.primitive
             is_goal = current == self.sequence[self.k_goal]
+        self.settling = self._settles(current, is_goal)
         cached = self.arrays
         if cached is None or cached[0] != current or cached[1] is not placed:
             # A policy's reference and domains are built once while it runs (a look at

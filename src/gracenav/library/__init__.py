@@ -44,6 +44,7 @@ from gracenav.library.instantiation import (
     build_library,
     estimate_library_size,
     expected_library_size,
+    lattice_origin,
     lattice_points,
     max_trim_speed,
 )
@@ -80,6 +81,7 @@ __all__ = [
     "build_library",
     "estimate_library_size",
     "expected_library_size",
+    "lattice_origin",
     "lattice_points",
     "max_trim_speed",
     "quarter_turn",

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from gracenav.errors import ConfigError
 from gracenav.library.library import DEFAULT_COVERAGE_SAMPLES, PolicyLibrary, sample_position_states
@@ -39,6 +39,7 @@ __all__ = [
     "build_library",
     "estimate_library_size",
     "expected_library_size",
+    "lattice_origin",
     "lattice_points",
     "max_trim_speed",
 ]
@@ -131,9 +132,32 @@ def _palette_tables(palette: Palette, step: float, speed_clearance: float) -> _T
     return cached
 
 
-def _lattice(world_map: WorldMap, spacing: float) -> tuple[FloatArray, int, int, FloatArray]:
-    """Origin (2,), nx, ny and the points (ny · nx, 2) of the instantiation lattice."""
+def lattice_origin(
+    world_map: WorldMap, spacing: float, anchor: ArrayLike | None = None
+) -> FloatArray:
+    """The first point (2,) of the instantiation lattice of ``spacing`` on the map: its
+    minimum corner, or with ``anchor`` (x, y) the lattice point nearest that corner
+    among those of the lattice through ``anchor`` (inside the map)."""
+    corner = np.asarray(world_map.bounds[0], dtype=float)
+    if anchor is None:
+        return corner
+    a = np.asarray(anchor, dtype=float).reshape(2)
+    if not np.all(np.isfinite(a)):
+        raise ConfigError(f"a lattice anchor is a finite point (x, y), got {anchor!r}")
+    off = np.mod(a - corner, spacing)
+    # A point within rounding of the next lattice line is on it.
+    off = np.where(spacing - off < _LATTICE_EPS * spacing, 0.0, off)
+    out: FloatArray = corner + off
+    return out
+
+
+def _lattice(
+    world_map: WorldMap, spacing: float, anchor: ArrayLike | None = None
+) -> tuple[FloatArray, int, int, FloatArray]:
+    """Origin (2,), nx, ny and the points (ny · nx, 2) of the instantiation lattice
+    (anchored at the map's minimum corner, or through ``anchor``)."""
     (x0, y0), (x1, y1) = world_map.bounds
+    x0, y0 = (float(v) for v in lattice_origin(world_map, spacing, anchor))
     nx = math.floor((x1 - x0) / spacing + _LATTICE_EPS) + 1
     ny = math.floor((y1 - y0) / spacing + _LATTICE_EPS) + 1
     origin = np.array([x0, y0])
@@ -194,8 +218,9 @@ def _instantiate(
     spacing: float,
     footprint: float,
     sweep_step: float,
+    anchor: ArrayLike | None = None,
 ) -> PolicyLibrary:
-    origin, nx, ny, points = _lattice(world_map, spacing)
+    origin, nx, ny, points = _lattice(world_map, spacing, anchor)
     c0 = world_map.clearance(points)
     all_t, all_q = _choose(types, tables, world_map, points, c0, footprint)
     if all_t.size:
@@ -622,6 +647,7 @@ def build_library(
     sweep_step: float | None = None,
     memory_limit: float | None = DEFAULT_MEMORY_LIMIT,
     speed_clearance: float = DEFAULT_SPEED_CLEARANCE,
+    anchor: ArrayLike | None = None,
 ) -> PolicyLibrary:
     """Instantiate the palette on a map with coverage-driven lattice refinement.
 
@@ -631,7 +657,8 @@ def build_library(
         The motion policy palette Π(Σ(d)).
     world_map : WorldMap
         The map M; its minimum corner anchors the lattice of instantiation points
-        (so a goal on that lattice is an instantiation point).
+        (so a goal on that lattice is an instantiation point) unless ``anchor`` is
+        given.
     footprint_radius : float
         Robot footprint radius (m), >= 0. The body is 0.37 m across.
     coverage_target : float
@@ -657,6 +684,10 @@ def build_library(
         straight ahead must be this times |v| farther than the swept D' needs; the disc
         checked for it also asks half of that beside the path, nothing behind (0 is the
         paper's instantiation; see the notes).
+    anchor : array_like, shape (2,), optional
+        A point (m) every lattice passes through (:func:`lattice_origin`): a goal at
+        rest there is the end of the library's rest trims, reached without a terminal.
+        Default: the lattice starts at the map's minimum corner.
 
     Returns
     -------
@@ -759,7 +790,7 @@ def build_library(
             _check_memory(
                 palette, world_map, spacing, footprint, step, allowance, float(memory_limit), h
             )
-        library = _instantiate(palette, types, tables, world_map, spacing, footprint, step)
+        library = _instantiate(palette, types, tables, world_map, spacing, footprint, step, anchor)
         coverage = float(np.mean(library.start_domain_covers(samples)))
         iterations.append(
             InstantiationIteration(spacing, len(library), coverage, time.perf_counter() - t0)

@@ -73,6 +73,9 @@ def library_key(scenario: Scenario, palette: Any) -> str:
     region: list[Any] = [scenario.region]
     if scenario.region != "map":
         region += [repr(scenario.region_margin), task_waypoints(scenario).tolist()]
+    anchor = lattice_anchor(scenario)
+    if anchor is not None:
+        region += ["anchor", [repr(float(v)) for v in anchor]]
     return json.dumps(
         [
             *region,
@@ -129,6 +132,7 @@ def prepare_library(scenario: Scenario, palette: Any | None = None) -> PreparedL
         seed=scenario.library_seed,
         speed_clearance=scenario.speed_clearance,
         memory_limit=None,
+        anchor=lattice_anchor(scenario),
     )
     graph = build_graph(library)
     return PreparedLibrary(
@@ -250,12 +254,35 @@ def _checked(
     try:
         _check_task(scenario, _probe(prepared, scenario), options)
     except PlanningError:
+        if scenario.lattice_anchor == "auto" and lattice_anchor(scenario) is not None:
+            # Impossible on the goal's lattice: the map's lattice (in the same region
+            # first) decides.
+            return _checked(
+                dataclasses.replace(scenario, lattice_anchor="map"),
+                prepare_library(dataclasses.replace(scenario, lattice_anchor="map"), palette),
+                palette,
+                options,
+            )
         if not (prepared.region == "task" and scenario.region == "auto"):
             raise
         # A route the region leaves out: the whole map decides.
         prepared = prepare_library(dataclasses.replace(scenario, region="map"), palette)
         _check_task(scenario, _probe(prepared, scenario), options)
     return prepared
+
+
+def lattice_anchor(scenario: Scenario) -> tuple[float, float] | None:
+    """The point the scenario's instantiation lattice passes through
+    (``planner.lattice_anchor``): the goal of a point-to-point task under ``goal``, and
+    under ``auto`` when the task has no moving obstacles (the other ends of the way a
+    parked cart leaves are the terminals of a goal off the lattice); else None (the
+    map's minimum corner)."""
+    if scenario.lattice_anchor == "map" or scenario.kind != "point_to_point":
+        return None
+    if scenario.lattice_anchor == "auto" and scenario.moving_obstacles:
+        return None
+    g = scenario.goals[0]
+    return (float(g[0]), float(g[1]))
 
 
 def _probe(prepared: PreparedLibrary, scenario: Scenario) -> Any:

@@ -106,6 +106,13 @@ class Scenario:
         map when the task is impossible in it (:mod:`gracenav.scenarios.region`).
     region_margin : float
         ``planner.region_margin`` (m).
+    lattice_anchor : {"auto", "goal", "map"}
+        ``planner.lattice_anchor``: where the instantiation lattice is anchored: the
+        map's minimum corner, or the goal (a rest goal of a point-to-point task is then
+        a lattice point, reached by the library's own rest trims, with no terminal);
+        ``auto`` is ``goal`` for point-to-point tasks without moving obstacles, falling
+        back to the map's corner when the task is impossible on the goal's lattice, and
+        ``map`` otherwise.
     """
 
     name: str
@@ -134,7 +141,11 @@ class Scenario:
     memory_limit: float = DEFAULT_MEMORY_LIMIT_GIB * GIB
     region: Literal["auto", "map", "task"] = "auto"
     region_margin: float = DEFAULT_REGION_MARGIN
+    lattice_anchor: Literal["auto", "goal", "map"] = "auto"
 
+
+#: ``planner.lattice_anchor`` values (see :class:`Scenario`).
+LATTICE_ANCHORS = ("auto", "goal", "map")
 
 _TOP = (
     "name",
@@ -261,6 +272,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
             "memory_limit_gib",
             "region",
             "region_margin",
+            "lattice_anchor",
         }
     )
     planner_kind = planner.choice("kind", PLANNERS, "gracenav")
@@ -286,6 +298,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         unit="GiB",
     )
     region = planner.choice("region", REGIONS, "auto")
+    lattice_anchor = planner.choice("lattice_anchor", LATTICE_ANCHORS, "auto")
     region_margin = planner.number(
         "region_margin",
         DEFAULT_REGION_MARGIN,
@@ -393,6 +406,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         memory_limit=memory_gib * GIB,
         region=region,  # type: ignore[arg-type]
         region_margin=region_margin,
+        lattice_anchor=lattice_anchor,  # type: ignore[arg-type]
     )
 
 
