@@ -449,3 +449,34 @@ def test_palette_verify_rechecks_regulators_as_built(palette, tmp_path, capsys) 
     heavier = tmp_path / "p.yaml"
     heavier.write_text("body_mass: 56.0\n")
     assert main(["palette", "verify", "--file", str(path), "--params", str(heavier)]) == 0
+
+
+@pytest.mark.parametrize("start", [(1.13, 1.37), (3.61, 4.02), (0.83, 2.71)])
+def test_a_start_at_rest_is_served_by_shifts_without_a_catch(box_room_controller, start) -> None:
+    """At rest with the plan's lean, off every start domain of the goal's sub-lattice: a
+    shift placed at a grid point next to the start already holds it in its S, so the
+    capture needs no catch and costs less than the cheapest one with a catch (the still
+    catch is a 1 s rest hold); each containment of the chain holds exactly."""
+    from gracenav.execution.capture import capture_for
+
+    hc = box_room_controller
+    lib = hc.library
+    cap = capture_for(lib)
+    goal = hc.goal_policy(np.array([4.0, 4.0, 0.0, 0.0]))
+    togo = hc.tree(goal).cost_to_go
+    st = np.array([*start, 0.0, 0.0])
+    plan = cap.plan(st, lean_deviation=(0.0, 0.0), cost_to_go=togo)
+    assert plan is not None
+    assert all(p.policy.name.startswith("shift") for p in plan.policies)
+    assert plan.policies[0].start_domain.contains(st)
+    for before, after in zip(plan.policies, plan.policies[1:], strict=False):
+        assert after.start_domain.contains_domain(before.goal_domain)
+    assert lib.policy(plan.rest_row).start_domain.contains_domain(plan.policies[-1].goal_domain)
+    shifts = sum(p.duration for p in plan.policies)
+    assert plan.cost == pytest.approx(shifts + togo[plan.rest_row], abs=1e-9)
+    # Outside the still lean band only catches serve the state, at a higher cost.
+    opts = cap.options
+    assert opts is not None
+    settled = cap.plan(st, lean_deviation=(2 * opts.still_lean[0], 0.0), cost_to_go=togo)
+    assert settled is not None and not settled.catch.policy.name.startswith("shift")
+    assert plan.cost < settled.cost

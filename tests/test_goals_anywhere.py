@@ -130,9 +130,9 @@ CLUTTERED = ROOT / "examples" / "maps" / "room_6m_cluttered.yaml"
 
 def test_a_start_near_walls_is_caught_onto_a_rest_trim_that_reaches_the_goal() -> None:
     """At rest 0.3 m beyond the footprint from two walls, with the default stopping
-    allowance: the start is served by a still catch and shifts onto a rest trim with a
-    way out (one shift onto a fine copy's rest trim; two onto an unscaled one before
-    the palette had fine copies)."""
+    allowance: the start is served by shifts onto a rest trim with a way out (a shift
+    whose S, placed at the grid point next to the start, holds it; before, a still
+    catch first, and two shifts before the palette had fine copies)."""
     scenario = parse_scenario(
         _task(_inline(CLUTTERED), (3.0, 2.25), (5.5, 0.5)), source="cluttered.yaml"
     )
@@ -141,7 +141,14 @@ def test_a_start_near_walls_is_caught_onto_a_rest_trim_that_reaches_the_goal() -
     run, ep = result.runs[0], result.episodes[0]
     assert ep.events[0].to_policy == CAPTURE
     plan = ep.captures[0][1]
-    assert 1 <= len(plan.shifts) <= 2
+    assert 1 <= len(plan.policies) <= 3
+    assert all(p.policy.name.startswith("shift") for p in plan.policies)
+    start = np.array([5.5, 0.5, 0.0, 0.0])
+    assert plan.policies[0].start_domain.contains(start)
+    for before, after in zip(plan.policies, plan.policies[1:], strict=False):
+        assert after.start_domain.contains_domain(before.goal_domain)
+    rest = result.library.policy(plan.rest_row)
+    assert rest.start_domain.contains_domain(plan.policies[-1].goal_domain)
     assert run.reached_goal and not run.contact and run.min_clearance_m >= 0.0
     assert run.final_error_m is not None and run.final_error_m <= 0.01
     assert run.balancing_s == 0.0

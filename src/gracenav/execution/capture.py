@@ -781,17 +781,65 @@ class Capture:
                     best, chosen = key, (m, heading, start, cell, ks, row)
             if cost_to_go is None and chosen is not None:
                 break
+        direct = None
+        if STILL in classes and (cost_to_go is not None or chosen is None):
+            direct = self._from_grid(st, cost_to_go, settle)
+        if direct is not None and (best is None or direct[0] < best[0]):
+            total, cell, ks, row = direct
+            placed = self._placed_shifts(cell, ks)
+            return CapturePlan(placed[0], tuple(placed[1:]), row, total)
         if chosen is None or best is None:
             return None
         m, heading, start, cell, ks, row = chosen
         catch = PlacedPolicy(m.policy, heading, np.asarray(start, dtype=float))
+        return CapturePlan(catch, tuple(self._placed_shifts(cell, ks)), row, best[0])
+
+    def _placed_shifts(self, cell: tuple[int, int], ks: tuple[int, ...]) -> list[PlacedPolicy]:
+        """The shifts ``ks`` placed one after the other from grid point ``cell``."""
         shifts = []
         at = np.asarray(cell, dtype=np.int64)
         for k in ks:
             pol, angle = self._shifts[k]
             shifts.append(PlacedPolicy(pol, angle, self.origin + at * self.grid))
             at = at + self._shift_cells[k]
-        return CapturePlan(catch, tuple(shifts), row, best[0])
+        return shifts
+
+    def _from_grid(
+        self,
+        st: FloatArray,
+        cost_to_go: FloatArray | None,
+        settle: Callable[[NDArray[np.int64]], None] | None,
+    ) -> tuple[float, tuple[int, int], tuple[int, ...], int] | None:
+        """The cheapest way onto a rest trim that starts with a shift whose S, placed
+        at one of the grid points nearest the state, already holds it (a state at rest
+        with the plan's lean, as a task's start: no catch is needed to reach the grid):
+        (shifts' duration plus the rest trim's cost-to-go, grid point, shift indices,
+        rest row), or None. Each shift's S holds the G before it and the rest trim's S
+        the last G, as in every capture (the ways of :meth:`_handovers`)."""
+        base = np.round((st[:2] - self.origin) / self.grid).astype(np.int64)
+        best: tuple[float, tuple[int, int], tuple[int, ...], int] | None = None
+        for offset in _NEIGHBOURS:
+            cell = (int(base[0] + offset[0]), int(base[1] + offset[1]))
+            q = self.origin + np.asarray(cell, dtype=float) * self.grid
+            ways = [w for w in self._handovers(cell, True) if w[1]]
+            if not ways:
+                continue
+            holds: dict[int, bool] = {}
+            for _, ks, _ in ways:
+                if ks[0] not in holds:
+                    pol, angle = self._shifts[ks[0]]
+                    holds[ks[0]] = bool(PlacedPolicy(pol, angle, q).start_domain.contains(st))
+            ways = [w for w in ways if holds[w[1][0]]]
+            if settle is not None and ways:
+                settle(np.array(sorted({w[2] for w in ways}), dtype=np.int64))
+            for shift_t, ks, row in ways:
+                togo = 0.0 if cost_to_go is None else float(cost_to_go[row])
+                if not math.isfinite(togo):
+                    continue
+                total = shift_t + togo
+                if best is None or total < best[0]:
+                    best = (total, cell, ks, row)
+        return best
 
     def covers(self, states: ArrayLike) -> BoolArray:
         """Whether a capture plan (with the plan lean: settled and still catches too)
