@@ -72,9 +72,9 @@ CAPTURE_LEAD = 0.05
 #: the way to it (:meth:`Goals.alternatives`) are tried with the trees toward at most
 #: this many approach trims.
 RETARGET_TREES = 16
-#: Ticks (0.125 s) over which the ball's measured position state is averaged before a
-#: terminal regulator ends the task (ExecutionOptions.settle_tolerance): the decoupled
-#: baseline tests its goal at this period.
+#: Ticks (0.125 s) over which the ball's measured position state is averaged before the
+#: goal's terminal regulator or rest trim ends the task (ExecutionOptions.
+#: settle_tolerance): the decoupled baseline tests its goal at this period.
 SETTLE_WINDOW = 128
 
 _NO_CENTER = np.zeros((0,))
@@ -187,7 +187,7 @@ class Supervisor:
         self.captured: list[PlacedPolicy] = []
         self.capture_plans: list[tuple[float, CapturePlan]] = []
         self.capture_row = -1
-        #: The terminal regulator's last position states (see _settled).
+        #: The last position states while a policy that settles runs (see _settled).
         self.settle_buf = np.zeros((SETTLE_WINDOW, 4))
         self.settle_n = 0
         self.settling = False
@@ -333,9 +333,9 @@ class Supervisor:
 
     def _settled(self, x: FloatArray) -> bool:
         """Whether a policy that settles (:meth:`_settles`) may end the task at this
-        tick: the ball, averaged over the last :data:`SETTLE_WINDOW` ticks of the regulator
-        (the measurement's noise averages out), within ``settle_tolerance`` of the goal
-        and slower than ``goal_tolerance``.
+        tick: the ball, averaged over the last :data:`SETTLE_WINDOW` ticks (the
+        measurement's noise averages out), within ``settle_tolerance`` of the goal and
+        slower than ``goal_tolerance``.
         """
         self.settle_buf[self.settle_n % SETTLE_WINDOW] = position_state(x, self.r)
         self.settle_n += 1

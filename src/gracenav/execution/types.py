@@ -158,12 +158,13 @@ class ExecutionOptions:
         With ``"modelled"``: the latency (s) of every computation, or None for its own
         wall time on this machine (runs are then not reproducible).
     settle_tolerance : float
-        While the terminal regulator holds the robot at a goal off the lattice, the task
-        ends at the first tick the ball is within this distance (m) of the goal (and
-        within ``goal_tolerance`` of it, whichever is smaller) and slower than
-        ``goal_tolerance``, instead of at the end of the regulator's run. The regulator's
-        reference is the goal at rest, and the robot balances about the goal with the
-        same law after the end: the motion is the same, the task ends when it is there.
+        While the last goal's terminal regulator (at a goal off the lattice) or the rest
+        trim that ends at the goal holds the robot, the task ends at the first tick the
+        ball, averaged over the last 0.125 s, is within this distance (m) of the goal
+        (and within ``goal_tolerance``, whichever is smaller) and slower than
+        ``goal_tolerance``, instead of at the end of that policy's run. Its reference is
+        the goal at rest, and the robot balances about the goal with the same law after
+        the end: the motion is the same, the task ends when the robot is there.
     skip_holds : bool
         Start the policy after a rest trim on the way (or the terminal after the goal's
         rest trim) as soon as its start domain holds the state, instead of holding the
