@@ -33,6 +33,11 @@ def test_simulate_balance_writes_csv_and_png(tmp_path, capsys) -> None:
         ["palette", "build", "--cruise-speeds", "0.4", "--out", "x.npz"],
         ["palette", "build", "--cruise-speeds", "1.0", "--max-speed", "0.9", "--out", "x.npz"],
         ["palette", "build", "--reference", "cubic", "--out", "x.npz"],
+        # Cruise speeds at or above the robot's top speed (1.615 m/s), refused before
+        # the catches' speeds are listed (1e9 m/s used to list them without end).
+        ["palette", "build", "--cruise-speeds", "1.7", "--out", "x.npz"],
+        ["palette", "build", "--cruise-speeds", "1e9", "--out", "x.npz"],
+        ["palette", "build", "--cruise-speeds", "inf", "--out", "x.npz"],
         ["frobnicate"],
     ],
 )

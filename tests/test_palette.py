@@ -293,3 +293,7 @@ def test_catches_reach_past_the_top_cruise_speed() -> None:
     catch = limits.verification_options().catch
     assert catch is not None and catch.speeds == fast
     assert "catches from up to 1.5 m/s" in limits.describe(60.0)
+    from gracenav.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="finite"):
+        catch_speeds_for((0.5, float("inf")))

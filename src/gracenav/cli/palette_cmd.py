@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 from typing import Any
 
@@ -150,6 +151,7 @@ def run_build(args: argparse.Namespace) -> int:
     from gracenav import BallbotParams
     from gracenav.control import design_gains
     from gracenav.errors import ConfigError
+    from gracenav.model import top_speed
     from gracenav.palette import (
         PaletteLimits,
         build_palette_for,
@@ -163,6 +165,13 @@ def run_build(args: argparse.Namespace) -> int:
         raise ConfigError(f"--d must be positive, got {args.d}")
     t0 = time.perf_counter()
     params = load_params(args) or BallbotParams()
+    v_max = top_speed(params)
+    for v in args.cruise_speeds:
+        if not (math.isfinite(v) and 0.0 < v < v_max):
+            raise ConfigError(
+                f"--cruise-speeds {v:g} m/s: a cruise speed must be below the robot's top "
+                f"speed {v_max:.3f} m/s (where friction alone takes the torque limit)"
+            )
     speeds = (0.5, *args.cruise_speeds)
     max_speed = args.max_speed if args.max_speed is not None else max(0.8, 1.1 * speeds[-1])
     limits = PaletteLimits(

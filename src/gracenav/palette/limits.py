@@ -29,13 +29,11 @@ def catch_speeds_for(cruise_speeds: tuple[float, ...]) -> tuple[float, ...]:
     default ones (0 to 1.2 m/s in steps of 0.1), continued in steps of 0.1 m/s up to
     :data:`CATCH_HEADROOM` above the top cruise speed."""
     base = CatchOptions().speeds
-    top = round(max(cruise_speeds, default=0.0) + CATCH_HEADROOM, 6)
-    extra: list[float] = []
-    v = base[-1]
-    while v + 1e-9 < top:
-        v = round(v + 0.1, 6)
-        extra.append(v)
-    return (*base, *extra)
+    fastest = max(cruise_speeds, default=0.0)
+    if not math.isfinite(fastest):
+        raise ConfigError(f"cruise speeds must be finite (m/s), got {cruise_speeds}")
+    steps = max(0, math.ceil(round((fastest + CATCH_HEADROOM - base[-1]) / 0.1, 6)))
+    return (*base, *(round(base[-1] + 0.1 * k, 6) for k in range(1, steps + 1)))
 
 
 @dataclass(frozen=True)
