@@ -6,9 +6,11 @@ arrives sooner by whole rest trims."""
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from gracenav.execution import (
     CAPTURE,
@@ -24,21 +26,17 @@ from gracenav.scenarios import parse_scenario
 from gracenav.scenarios.run import prepare_library
 from gracenav.sim import position_state, state_from_position
 
-#: The cluttered 6 m room of examples/campaigns/random_pairs.yaml, one lattice halving,
-#: a start and a goal at rest off the lattice (the campaign's first trial).
+#: The cluttered 6 m room of examples/campaigns/random_pairs.yaml
+#: (examples/maps/room_6m_cluttered.yaml), one lattice halving, a start and a goal at
+#: rest off the map's lattice (the campaign's first trial).
 ROOM = {
-    "bounds": [[0.0, 0.0], [6.0, 6.0]],
-    "resolution": 0.05,
-    "obstacles": [
-        {"rectangle": {"min": [1.0, 1.0], "max": [2.0, 1.6]}},
-        {"rectangle": {"min": [3.5, 0.0], "max": [4.1, 1.2]}},
-        {"rectangle": {"min": [4.2, 3.0], "max": [5.0, 4.0]}},
-        {"rectangle": {"min": [0.0, 4.3], "max": [1.4, 4.8]}},
-        {"circle": {"center": [2.9, 3.1], "radius": 0.35}},
-        {"circle": {"center": [1.9, 4.9], "radius": 0.25}},
-        {"circle": {"center": [5.3, 1.9], "radius": 0.25}},
-        {"polygon": {"points": [[2.6, 5.2], [3.6, 5.2], [3.1, 6.0]]}},
-    ],
+    k: v
+    for k, v in yaml.safe_load(
+        (
+            Path(__file__).resolve().parent.parent / "examples/maps/room_6m_cluttered.yaml"
+        ).read_text()
+    ).items()
+    if k != "name"
 }
 START = (2.375, 1.125)
 GOAL = (3.475, 3.975)
@@ -113,7 +111,6 @@ def test_skipped_holds_switch_into_domains_that_hold_the_state(
 
 def test_holds_are_skipped_by_default() -> None:
     assert ExecutionOptions().skip_holds is True
-    assert dataclasses.replace(ExecutionOptions(), skip_holds=False).skip_holds is False
 
 
 @pytest.mark.slow

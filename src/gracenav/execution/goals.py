@@ -23,7 +23,7 @@ IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
 
 #: Distance (m, m/s) within which a goal counts as the end state of a lattice trim.
-_ON_LATTICE = 1e-9
+ON_LATTICE = 1e-9
 
 #: Terminals by goal (:meth:`HybridController.terminal_policies`) of each library, and
 #: every terminal of a goal (:meth:`Goals.alternatives`, under the goal with a trailing
@@ -78,7 +78,7 @@ class Goals:
         candidate = self._containing_trim(g)
         at_rest = bool(np.all(g[2:] == 0.0))
         exact = candidate >= 0 and bool(
-            np.linalg.norm(self.library.end_state[candidate] - g) <= _ON_LATTICE
+            np.linalg.norm(self.library.end_state[candidate] - g) <= ON_LATTICE
         )
         if candidate >= 0 and (exact or not at_rest):
             return candidate
@@ -180,7 +180,7 @@ class Goals:
         goal on the lattice needs no terminal)."""
         g = np.asarray(goal, dtype=float)
         if 0 <= goal_id < len(self.library) and bool(
-            np.linalg.norm(self.library.end_state[goal_id] - g) <= _ON_LATTICE
+            np.linalg.norm(self.library.end_state[goal_id] - g) <= ON_LATTICE
         ):
             return None
         terms = self._terminals.get(tuple(float(v) for v in g))

@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 from gracenav.control.law import TrackingLaw
 from gracenav.execution.capture import CapturePlan, PlacedPolicy, ShiftTerminal, TerminalPolicy
 from gracenav.execution.episode import ExecutionLog
+from gracenav.execution.goals import ON_LATTICE
 from gracenav.execution.jobs import Job
 from gracenav.execution.obstacles import ObstacleTracker
 from gracenav.execution.types import (
@@ -328,7 +329,7 @@ class Supervisor:
         return bool(
             lib.policy(current).policy.primitive.kind is PrimitiveKind.REST
             and np.all(g[2:] == 0.0)
-            and np.linalg.norm(lib.end_state[current] - g) <= 1e-9
+            and np.linalg.norm(lib.end_state[current] - g) <= ON_LATTICE
         )
 
     def _settled(self, x: FloatArray) -> bool:
