@@ -14,13 +14,15 @@ clearance).
 ``--mode paper`` is the paper's hybrid controller (no resumption from balancing
 mode: the task stops there); ``--mode fallback`` resumes from it. The library keeps
 the default stopping allowance (``--speed-clearance``, gracenav.library.build_library;
-0 is the paper's instantiation). ``--plant mujoco`` runs the same robot in MuJoCo
+0 is the paper's instantiation); ``--design-push J`` keeps room, where the robot
+moves faster than the palette's base cruise speed, for the catches of a push of J N s
+(planner.design_push). ``--plant mujoco`` runs the same robot in MuJoCo
 instead of the 3D model the policies were verified on.
 Target (paper mode): >= 99 % of >= 300 runs with pushes of 0-16 N s reach the
 goal, every recovery into a verified start domain, no contact.
 
     OPENBLAS_NUM_THREADS=1 python bench/bench_pushes.py [--runs 300] [--mode paper]
-        [--seed 0] [--speed-clearance 0.1] [--plant model3d]
+        [--seed 0] [--speed-clearance 0.1] [--design-push 0] [--plant model3d]
 """
 
 from __future__ import annotations
@@ -74,7 +76,10 @@ class Outcome:
 
 
 def _init(
-    resume: bool, speed_clearance: float = DEFAULT_SPEED_CLEARANCE, plant: PlantKind = "model3d"
+    resume: bool,
+    speed_clearance: float = DEFAULT_SPEED_CLEARANCE,
+    plant: PlantKind = "model3d",
+    design_push: float = 0.0,
 ) -> None:
     global _robot, _resume, _plant
     pal = load_palette()
@@ -84,6 +89,7 @@ def _init(
         footprint_radius=FOOTPRINT,
         max_halvings=1,
         speed_clearance=speed_clearance,
+        design_push=design_push,
     )
     _robot = HybridController(lib, build_graph(lib))
     _resume = resume
@@ -143,6 +149,13 @@ def main() -> None:
         "paper's instantiation)",
     )
     ap.add_argument(
+        "--design-push",
+        type=float,
+        default=0.0,
+        help="push (N s) the library keeps room to catch above the base cruise speed "
+        "(default 0: none)",
+    )
+    ap.add_argument(
         "--plant",
         choices=PLANT_KINDS,
         default="model3d",
@@ -150,7 +163,7 @@ def main() -> None:
         "10 s per run)",
     )
     args = ap.parse_args()
-    _init(args.mode == "fallback", args.speed_clearance, args.plant)
+    _init(args.mode == "fallback", args.speed_clearance, args.plant, args.design_push)
     assert _robot is not None
     r = _robot.palette.params.ball_radius
     unpushed = _robot.run(
@@ -165,7 +178,7 @@ def main() -> None:
         with ctx.Pool(
             args.processes,
             initializer=_init,
-            initargs=(args.mode == "fallback", args.speed_clearance, args.plant),
+            initargs=(args.mode == "fallback", args.speed_clearance, args.plant, args.design_push),
         ) as pool:
             results = pool.map(_run, draws, chunksize=4)
     else:
@@ -174,7 +187,8 @@ def main() -> None:
     print(
         f"{args.runs} pushed runs (seed {args.seed}), plant {args.plant}, mode {args.mode}, "
         "speed clearance "
-        f"{args.speed_clearance:g} s, unpushed run {unpushed.time[-1]:.2f} s, "
+        f"{args.speed_clearance:g} s, design push {args.design_push:g} N s, "
+        f"unpushed run {unpushed.time[-1]:.2f} s, "
         f"{len(_robot.library)} policies; {wall:.1f} s wall on {args.processes} processes"
     )
     header = (

@@ -21,10 +21,15 @@ gracenav / decoupled, median max jerk and median p95 jerk (from the true state,
 :mod:`gracenav.execution.smoothness`), largest lean (°) against the palette's lean
 limits (its maneuvers' and the verified balancing domain's); for the pairs also the
 median of time / T* with L the straight distance (a lower bound on the path, so T*
-stays a bound). Progress goes to stderr, the tables to stdout.
+stays a bound). ``--design-push J`` sets ``planner.design_push`` (N s) on both
+measurements: the library then keeps room, where it moves faster than the palette's
+base cruise speed, for the catches of a push of J (with the pairs, the campaign's
+draws are then checked against that library). Progress goes to stderr, the tables to
+stdout.
 
     OPENBLAS_NUM_THREADS=1 nice -n 5 .venv/bin/python bench/bench_speed.py
         [--trials 20] [--seed N] [--only long|pairs] [--lean-limit-deg 5]
+        [--design-push 0]
 """
 
 from __future__ import annotations
@@ -138,7 +143,7 @@ def _print_table(rows: list[dict[str, Any]], lean: tuple[float, float]) -> None:
     )
 
 
-def bench_long(palette: Any, lean_limit: float, seed: int) -> None:
+def bench_long(palette: Any, lean_limit: float, seed: int, design_push: float = 0.0) -> None:
     from gracenav.model import physical_time_bound
     from gracenav.scenarios import parse_scenario, run_scenario
 
@@ -148,6 +153,8 @@ def bench_long(palette: Any, lean_limit: float, seed: int) -> None:
     for planner in PLANNERS:
         doc = building_scenario(seed)
         doc["planner"]["kind"] = planner
+        if design_push > 0.0:
+            doc["planner"]["design_push"] = design_push
         scenario = parse_scenario(doc, source="long task")
         t0 = time.perf_counter()
         print(f"long task: {planner} ...", file=sys.stderr, flush=True)
@@ -172,7 +179,9 @@ def bench_long(palette: Any, lean_limit: float, seed: int) -> None:
     _print_table(rows, _lean_limits(palette))
 
 
-def bench_pairs(palette: Any, trials: int, seed: int | None, lean_limit: float) -> None:
+def bench_pairs(
+    palette: Any, trials: int, seed: int | None, lean_limit: float, design_push: float = 0.0
+) -> None:
     from gracenav.campaign import load_campaign
     from gracenav.campaign.runner import run_trial
     from gracenav.model import physical_time_bound
@@ -180,6 +189,10 @@ def bench_pairs(palette: Any, trials: int, seed: int | None, lean_limit: float) 
     campaign = load_campaign(PAIRS)
     if seed is not None:
         campaign = dataclasses.replace(campaign, seed=seed)
+    if design_push > 0.0:
+        doc = dict(campaign.scenario)
+        doc["planner"] = {**(doc.get("planner") or {}), "design_push": design_push}
+        campaign = dataclasses.replace(campaign, scenario=doc)
     by_planner: dict[str, list[dict[str, Any]]] = {p: [] for p in PLANNERS}
     t0 = time.perf_counter()
     for i in range(trials):
@@ -227,6 +240,12 @@ def main() -> None:
         default=None,
         help="lean limit of the bound (default: the palette's maneuvers' max_lean)",
     )
+    ap.add_argument(
+        "--design-push",
+        type=float,
+        default=0.0,
+        help="planner.design_push (N s) of both measurements (default 0: none)",
+    )
     args = ap.parse_args()
     palette = load_palette()
     lean = (
@@ -235,9 +254,9 @@ def main() -> None:
         else float(PaletteLimits.of(palette).max_lean)
     )
     if args.only in (None, "long"):
-        bench_long(palette, lean, args.seed if args.seed is not None else 0)
+        bench_long(palette, lean, args.seed if args.seed is not None else 0, args.design_push)
     if args.only in (None, "pairs"):
-        bench_pairs(palette, args.trials, args.seed, lean)
+        bench_pairs(palette, args.trials, args.seed, lean, args.design_push)
 
 
 if __name__ == "__main__":

@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from gracenav.library import PolicyLibrary, sweep_samples
+from gracenav.library import PolicyLibrary, swept_discs
 from gracenav.policies import (
     CatchOptions,
     MotionPolicy,
@@ -208,37 +208,6 @@ class _Member:
     reach: FloatArray  # D' radius plus half the gap to the next sample, (K,)
 
 
-def _sweep_of(policy: MotionPolicy, step: float) -> tuple[FloatArray, FloatArray]:
-    """Reference samples (K, 2) at most ``step`` of arc apart and the XY radius of D'
-    there plus half the arc to a neighbouring sample (K,): the discs whose union
-    holds the swept D' (as instantiation checks it)."""
-    pos, cum, sel = sweep_samples(policy, step)
-    outer, _ = policy.outer_extents(sel * policy.primitive.dt)
-    along = float(np.max(outer))
-    if policy.outer_cross is not None and np.any(policy.primitive.start_velocity):
-        # An ellipse (along a, across b <= a) lies in the discs of radius b centred on
-        # its major axis within a - b of its centre: the reference's straight path
-        # extended by a - b at both ends, with radius b.
-        ext = along - policy.outer_cross
-        u = policy.primitive.start_velocity / np.hypot(*policy.primitive.start_velocity)
-        k = np.arange(1, int(np.ceil(ext / step)) + 1)
-        grow = np.minimum(k * step, ext)
-        pts = np.concatenate(
-            [(-grow[::-1])[:, None] * u, pos[sel], pos[sel][-1] + grow[:, None] * u]
-        )
-        cum_all = np.concatenate([-grow[::-1], cum[sel], cum[sel][-1] + grow])
-        outer = np.full(pts.shape[0], policy.outer_cross)
-    else:
-        pts, cum_all = pos[sel], cum[sel]
-    reach = np.asarray(outer, dtype=float).copy()
-    if pts.shape[0] > 1:
-        half = 0.5 * np.diff(cum_all)
-        seg = np.maximum(outer[:-1], outer[1:]) + half
-        reach[:-1] = np.maximum(reach[:-1], seg)
-        reach[1:] = np.maximum(reach[1:], seg)
-    return np.ascontiguousarray(pts), reach
-
-
 #: Each library's capture planner (:func:`capture_for`), kept as long as the library
 #: lives. A planner holds its library weakly, so it does not keep its own key alive.
 _PLANNERS: weakref.WeakKeyDictionary[PolicyLibrary, Capture] = weakref.WeakKeyDictionary()
@@ -302,7 +271,7 @@ class Capture:
         step = min(float(library.sweep_step), _SWEEP_STEP)
         members = []
         for pol in palette.catches:
-            path, reach = _sweep_of(pol, step)
+            path, reach = swept_discs(pol, step)
             members.append(
                 _Member(
                     pol,
@@ -321,7 +290,7 @@ class Capture:
         reaches: list[FloatArray] = []
         still: list[bool] = []
         for pol in palette.shifts:
-            path, reach = _sweep_of(pol, step)
+            path, reach = swept_discs(pol, step)
             for k in range(4):
                 angle = 0.5 * math.pi * k
                 c, s = math.cos(angle), math.sin(angle)
@@ -569,7 +538,7 @@ class Capture:
         cells = base + _NEIGHBOURS
         xy = self.origin + cells * self.grid
         dist = np.hypot(*(xy - g[:2]).T)
-        hold_path, hold_reach = _sweep_of(hold, min(float(library.sweep_step), _SWEEP_STEP))
+        hold_path, hold_reach = swept_discs(hold, min(float(library.sweep_step), _SWEEP_STEP))
         for n in np.argsort(dist, kind="stable"):
             if dist[n] > _TERMINAL_REACH * self.grid + 1e-12:
                 break

@@ -38,6 +38,7 @@ from gracenav.library.instantiation import (
     DEFAULT_SPEED_CLEARANCE,
     ESTIMATE_SAMPLES,
     LATTICE_POINT_BYTES,
+    MAX_DESIGN_PUSH,
     MAX_SPEED_CLEARANCE,
     POLICY_BYTES,
     LibrarySizeEstimate,
@@ -54,7 +55,10 @@ from gracenav.library.library import (
     sample_position_states,
 )
 from gracenav.library.sweeps import (
+    PushFan,
+    push_fan,
     sweep_samples,
+    swept_discs,
 )
 from gracenav.library.types import (
     ORIENTATIONS,
@@ -70,6 +74,7 @@ __all__ = [
     "DEFAULT_SPEED_CLEARANCE",
     "ESTIMATE_SAMPLES",
     "LATTICE_POINT_BYTES",
+    "MAX_DESIGN_PUSH",
     "MAX_SPEED_CLEARANCE",
     "ORIENTATIONS",
     "POLICY_BYTES",
@@ -78,13 +83,16 @@ __all__ = [
     "LibrarySizeEstimate",
     "PolicyLibrary",
     "PolicyTypes",
+    "PushFan",
     "build_library",
     "estimate_library_size",
     "expected_library_size",
     "lattice_origin",
     "lattice_points",
     "max_trim_speed",
+    "push_fan",
     "quarter_turn",
     "sample_position_states",
     "sweep_samples",
+    "swept_discs",
 ]

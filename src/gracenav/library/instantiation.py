@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from gracenav.errors import ConfigError
 from gracenav.library.library import DEFAULT_COVERAGE_SAMPLES, PolicyLibrary, sample_position_states
-from gracenav.library.sweeps import _check_sweeps, _sweep, _sweep_tables, sweep_samples
+from gracenav.library.sweeps import _check_sweeps, _sweep, _sweep_tables, push_fan, sweep_samples
 from gracenav.library.types import (
     _LATTICE_EPS,
     BoolArray,
@@ -33,6 +33,7 @@ __all__ = [
     "DEFAULT_SPEED_CLEARANCE",
     "ESTIMATE_SAMPLES",
     "LATTICE_POINT_BYTES",
+    "MAX_DESIGN_PUSH",
     "MAX_SPEED_CLEARANCE",
     "POLICY_BYTES",
     "LibrarySizeEstimate",
@@ -74,13 +75,17 @@ DEFAULT_SPEED_CLEARANCE = 0.1
 #: Largest stopping allowance accepted (s).
 MAX_SPEED_CLEARANCE = 2.0
 
-#: The palette's types and swept outer domain tables of one sweep step and speed clearance.
+#: Largest design push accepted (N s): twice the capture regulators' largest verified push.
+MAX_DESIGN_PUSH = 80.0
+
+#: The palette's types and swept outer domain tables of one sweep step, speed clearance
+#: and design push.
 _Tables = tuple[PolicyTypes, dict[str, NDArray[Any]]]
 
 
 class _PaletteTables:
-    """Instantiation's tables of each live palette, by sweep step and speed clearance
-    (``f"{step!r}-{speed_clearance!r}"``).
+    """Instantiation's tables of each live palette, by sweep step, speed clearance and
+    design push (``f"{step!r}-{speed_clearance!r}-{design_push!r}"``).
 
     A palette is keyed by identity (it is not hashable) and held weakly: its entry goes
     when it is collected. The tables hold no reference to the palette.
@@ -110,21 +115,24 @@ class _PaletteTables:
 _PALETTE_TABLES = _PaletteTables()
 
 
-def _palette_tables(palette: Palette, step: float, speed_clearance: float) -> _Tables:
-    """The palette's types and swept outer domain tables for sweep step ``step`` and
-    ``speed_clearance``: they depend on the palette only, so they are computed once per
-    palette, step and speed clearance."""
+def _palette_tables(
+    palette: Palette, step: float, speed_clearance: float, design_push: float = 0.0
+) -> _Tables:
+    """The palette's types and swept outer domain tables for sweep step ``step``,
+    ``speed_clearance`` and ``design_push``: they depend on the palette only, so they
+    are computed once per palette, step, speed clearance and design push."""
     cache = _PALETTE_TABLES.of(palette)
-    key = f"{step!r}-{speed_clearance!r}"
+    key = f"{step!r}-{speed_clearance!r}-{design_push!r}"
     cached = cache.get(key)
     if cached is None:
+        fan = push_fan(palette, design_push, step)
         samples: dict[int, tuple[FloatArray, FloatArray, IntArray]] = {}
         sweeps = []
         for pol in palette.policies:
             got = samples.get(id(pol.primitive))
             if got is None:
                 got = samples[id(pol.primitive)] = sweep_samples(pol, step, 0.5 * speed_clearance)
-            sweeps.append(_sweep(pol, step, got, speed_clearance))
+            sweeps.append(_sweep(pol, step, got, speed_clearance, fan))
         cached = cache[key] = (
             PolicyTypes.from_palette(palette),
             _sweep_tables(sweeps),
@@ -310,6 +318,7 @@ def estimate_library_size(
     footprint_radius: float = 0.2,
     sweep_step: float | None = None,
     speed_clearance: float = DEFAULT_SPEED_CLEARANCE,
+    design_push: float = 0.0,
 ) -> tuple[int, int]:
     """Bounds on the number of policies one pass at ``spacing`` would keep, without
     instantiating: O(P log P) in the lattice points P.
@@ -332,6 +341,8 @@ def estimate_library_size(
         As for :func:`build_library`; default the map resolution.
     speed_clearance : float
         As for :func:`build_library` (s).
+    design_push : float
+        As for :func:`build_library` (N s).
 
     Returns
     -------
@@ -339,7 +350,7 @@ def estimate_library_size(
         A lower and an upper bound of the library size.
     """
     step = float(sweep_step) if sweep_step is not None else float(world_map.resolution)
-    types, tables = _palette_tables(palette, step, float(speed_clearance))
+    types, tables = _palette_tables(palette, step, float(speed_clearance), float(design_push))
     _, _, _, points = _lattice(world_map, spacing)
     c0 = np.sort(world_map.clearance(points))
     placed = _placed_types(types)
@@ -401,6 +412,7 @@ def expected_library_size(
     footprint_radius: float = 0.2,
     sweep_step: float | None = None,
     speed_clearance: float = DEFAULT_SPEED_CLEARANCE,
+    design_push: float = 0.0,
     samples: int = ESTIMATE_SAMPLES,
     seed: int = 0,
 ) -> LibrarySizeEstimate:
@@ -424,7 +436,7 @@ def expected_library_size(
     world_map : WorldMap
     spacing : float
         Lattice spacing (m).
-    footprint_radius, sweep_step, speed_clearance
+    footprint_radius, sweep_step, speed_clearance, design_push
         As for :func:`build_library`.
     samples : int
         Undecided points to check, >= 2.
@@ -439,7 +451,7 @@ def expected_library_size(
         raise ConfigError(f"samples must be an integer >= 2, got {samples!r}")
     step = float(sweep_step) if sweep_step is not None else float(world_map.resolution)
     fp = float(footprint_radius)
-    types, tables = _palette_tables(palette, step, float(speed_clearance))
+    types, tables = _palette_tables(palette, step, float(speed_clearance), float(design_push))
     _, _, _, points = _lattice(world_map, spacing)
     c0 = world_map.clearance(points)
     placed = _placed_types(types)
@@ -515,6 +527,7 @@ def _check_memory(
     footprint: float,
     step: float,
     speed_clearance: float,
+    design_push: float,
     limit: float,
     halving: int,
 ) -> None:
@@ -542,6 +555,7 @@ def _check_memory(
         footprint_radius=footprint,
         sweep_step=step,
         speed_clearance=speed_clearance,
+        design_push=design_push,
     )
     if high * POLICY_BYTES <= limit:
         return
@@ -555,6 +569,7 @@ def _check_memory(
             footprint_radius=footprint,
             sweep_step=step,
             speed_clearance=speed_clearance,
+            design_push=design_push,
         )
         need = est.upper() * POLICY_BYTES
         size, amount = f"about {est.expected:.3g} (of {low:.3g} to {high:.3g})", "about"
@@ -576,6 +591,7 @@ def _check_inputs(
     sweep_step: float | None,
     memory_limit: float | None,
     speed_clearance: float,
+    design_push: float = 0.0,
 ) -> None:
     if not isinstance(palette, Palette):
         raise ConfigError(f"palette must be a Palette, got {type(palette).__name__}")
@@ -618,6 +634,15 @@ def _check_inputs(
             f"speed_clearance must be a time in [0, {MAX_SPEED_CLEARANCE:g}] s (extra "
             f"clearance per m/s of reference speed), got {speed_clearance!r}"
         )
+    if not (
+        isinstance(design_push, int | float)
+        and not isinstance(design_push, bool)
+        and 0.0 <= design_push <= MAX_DESIGN_PUSH
+    ):
+        raise ConfigError(
+            f"design_push must be an impulse in [0, {MAX_DESIGN_PUSH:g}] N s (0: none), got "
+            f"{design_push!r}"
+        )
     if memory_limit is not None and not (
         isinstance(memory_limit, int | float)
         and not isinstance(memory_limit, bool)
@@ -648,6 +673,7 @@ def build_library(
     memory_limit: float | None = DEFAULT_MEMORY_LIMIT,
     speed_clearance: float = DEFAULT_SPEED_CLEARANCE,
     anchor: ArrayLike | None = None,
+    design_push: float = 0.0,
 ) -> PolicyLibrary:
     """Instantiate the palette on a map with coverage-driven lattice refinement.
 
@@ -688,6 +714,11 @@ def build_library(
         A point (m) every lattice passes through (:func:`lattice_origin`): a goal at
         rest there is the end of the library's rest trims, reached without a terminal.
         Default: the lattice starts at the map's minimum corner.
+    design_push : float
+        Design push (N s, 0: none): where the reference is faster than the palette's
+        base cruise speed, the catches of every state this push leaves must fit too
+        (see the notes). Policies whose pushed states no verified catch holds are not
+        placed.
 
     Returns
     -------
@@ -742,6 +773,20 @@ def build_library(
     costs half the allowance beside it. Rest policies (the goals, and the catches'
     ends) are unaffected.
 
+    **Design push.** A catch's reach grows with the square of its speed (0.71 m from
+    0.8 m/s, 2.81 m from 1.3 m/s on the speed-level palette), faster than any
+    allowance proportional to speed. With ``design_push`` J > 0, at the samples where
+    the reference speed exceeds the palette's base cruise speed (every
+    :data:`~gracenav.library.sweeps.FAN_PERIOD` s at most), the robot's state is
+    pushed by J in each of :data:`~gracenav.library.sweeps.FAN_DIRECTIONS`
+    directions: the velocity changes by J / M (M the robot's mass), and the pushed
+    catch of the nearest speed, turned along the new velocity and started at the
+    reference point, must fit with its swept D' grown by one cell of the catches'
+    placement grid (:class:`~gracenav.library.sweeps.PushFan`). A pushed speed that no
+    pushed catch's S holds (beyond the fastest catch the torque limit lets verify)
+    leaves the policy out everywhere. At and below the base cruise speed the
+    allowance above applies alone.
+
     **Coverage** is the fraction of ``coverage_samples`` position states, uniform
     over free positions with clearance >= f and velocities in [−v_max, v_max]² (v_max
     the largest trim speed; see :func:`sample_position_states` and
@@ -763,11 +808,13 @@ def build_library(
         sweep_step,
         memory_limit,
         speed_clearance,
+        design_push,
     )
     footprint = float(footprint_radius)
     allowance = float(speed_clearance)
+    push = float(design_push)
     step = float(sweep_step) if sweep_step is not None else float(world_map.resolution)
-    types, tables = _palette_tables(palette, step, allowance)
+    types, tables = _palette_tables(palette, step, allowance, push)
     samples = sample_position_states(
         world_map,
         coverage_samples,
@@ -788,7 +835,15 @@ def build_library(
         spacing = palette.d / 2**h
         if memory_limit is not None:
             _check_memory(
-                palette, world_map, spacing, footprint, step, allowance, float(memory_limit), h
+                palette,
+                world_map,
+                spacing,
+                footprint,
+                step,
+                allowance,
+                push,
+                float(memory_limit),
+                h,
             )
         library = _instantiate(palette, types, tables, world_map, spacing, footprint, step, anchor)
         coverage = float(np.mean(library.start_domain_covers(samples)))
@@ -799,5 +854,8 @@ def build_library(
             break
     assert library is not None
     return library._with_results(
-        coverage=coverage, iterations=tuple(iterations), speed_clearance=allowance
+        coverage=coverage,
+        iterations=tuple(iterations),
+        speed_clearance=allowance,
+        design_push=push,
     )

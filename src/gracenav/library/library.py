@@ -92,6 +92,8 @@ class PolicyLibrary:
         (plus at most one control tick of motion).
     speed_clearance : float
         Stopping allowance (s) the instantiation kept (see :func:`build_library`).
+    design_push : float
+        Design push (N s) the instantiation kept room to catch (0: none).
     """
 
     palette: Palette
@@ -113,6 +115,7 @@ class PolicyLibrary:
     iterations: tuple[InstantiationIteration, ...] = ()
     sweep_step: float = 0.0
     speed_clearance: float = 0.0
+    design_push: float = 0.0
     #: The spatial hash of the start domains, built by the first start-domain query
     #: (:meth:`_start_index`, its only writer; :meth:`_with_results` carries it over).
     _starts: _StartIndex | None = field(default=None, init=False, repr=False, compare=False)
@@ -210,11 +213,16 @@ class PolicyLibrary:
         coverage: float,
         iterations: tuple[InstantiationIteration, ...],
         speed_clearance: float,
+        design_push: float = 0.0,
     ) -> PolicyLibrary:
         """This library with the results of :func:`build_library` recorded; the rows are
         the same, so it keeps the start-domain index already built."""
         out = replace(
-            self, coverage=coverage, iterations=iterations, speed_clearance=speed_clearance
+            self,
+            coverage=coverage,
+            iterations=iterations,
+            speed_clearance=speed_clearance,
+            design_push=design_push,
         )
         object.__setattr__(out, "_starts", self._starts)
         return out

@@ -1,23 +1,39 @@
 """Swept outer domains: a policy's D'(t) sampled along its reference, grown by the
-footprint and the stopping allowance, checked against a map's clearance (compiled)."""
+footprint, the stopping allowance and the catches a design push calls for, checked
+against a map's clearance (compiled)."""
 
 from __future__ import annotations
 
 import math
 import os
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numba
 import numpy as np
 from numba import njit, prange
 from numpy.typing import NDArray
 
+from gracenav.errors import ConfigError
 from gracenav.library.types import ORIENTATIONS, BoolArray, FloatArray, IntArray, _rotate
+from gracenav.palette import Palette
 from gracenav.policies import MotionPolicy
+from gracenav.policies.catches import PUSHED, lean_class_of
 from gracenav.world import WorldMap
 
-__all__ = ["sweep_samples"]
+if TYPE_CHECKING:
+    from gracenav.params import BallbotParams
+
+__all__ = [
+    "FAN_DIRECTIONS",
+    "FAN_FLOOR",
+    "FAN_PERIOD",
+    "PushFan",
+    "flat_speed_change",
+    "push_fan",
+    "sweep_samples",
+    "swept_discs",
+]
 
 # The compiled sweep check runs in parallel. numba's default layer here is GNU OpenMP,
 # which aborts any process that forks after using it (worker pools fork: palette
@@ -29,6 +45,20 @@ if _numba_config.THREADING_LAYER == "default" and "NUMBA_THREADING_LAYER" not in
     _numba_config.THREADING_LAYER = "forksafe"
 
 _GROUP = 8  # checked sweep samples per bounding disc of the hierarchical sweep check
+
+#: Directions of the design push a push fan checks, evenly spaced over the full turn.
+FAN_DIRECTIONS = 8
+
+#: The reference ticks a push fan is checked at are at least this far apart (s).
+FAN_PERIOD = 0.25
+
+#: Reference speeds (m/s) at or below which a push fan is not checked. The shipped
+#: palette's references reach 0.945 m/s, and with the stopping allowance alone every
+#: one of 900 seeded pushes of up to 16 N s on the 5 m room was caught there
+#: (bench/bench_pushes.py); a fan below it costs reachability near walls that no
+#: measured push needed (the 5 m room's task from (1, 1) has no way out with a fan
+#: from 0.5 m/s).
+FAN_FLOOR = 0.95
 
 
 @dataclass(frozen=True)
@@ -82,17 +112,174 @@ def sweep_samples(
     return pos, cum, sel
 
 
+def swept_discs(policy: MotionPolicy, step: float) -> tuple[FloatArray, FloatArray]:
+    """Discs whose union holds a policy's swept D' (policy frame, from its start).
+
+    Reference samples (K, 2) at most ``step`` of arc apart and the XY radius of D'
+    there plus half the arc to a neighbouring sample (K,), as instantiation checks a
+    swept D'. A D' whose XY section is an ellipse (along a, across b <= a; a policy
+    with ``outer_cross``) lies in the discs of radius b centred on its major axis
+    within a - b of its centre: the straight path is extended by a - b at both ends.
+    """
+    pos, cum, sel = sweep_samples(policy, step)
+    outer, _ = policy.outer_extents(sel * policy.primitive.dt)
+    along = float(np.max(outer))
+    if policy.outer_cross is not None and np.any(policy.primitive.start_velocity):
+        ext = along - policy.outer_cross
+        u = policy.primitive.start_velocity / np.hypot(*policy.primitive.start_velocity)
+        k = np.arange(1, int(np.ceil(ext / step)) + 1)
+        grow = np.minimum(k * step, ext)
+        pts = np.concatenate(
+            [(-grow[::-1])[:, None] * u, pos[sel], pos[sel][-1] + grow[:, None] * u]
+        )
+        cum_all = np.concatenate([-grow[::-1], cum[sel], cum[sel][-1] + grow])
+        outer = np.full(pts.shape[0], policy.outer_cross)
+    else:
+        pts, cum_all = pos[sel], cum[sel]
+    reach = np.asarray(outer, dtype=float).copy()
+    if pts.shape[0] > 1:
+        half = 0.5 * np.diff(cum_all)
+        seg = np.maximum(outer[:-1], outer[1:]) + half
+        reach[:-1] = np.maximum(reach[:-1], seg)
+        reach[1:] = np.maximum(reach[1:], seg)
+    return np.ascontiguousarray(pts), reach
+
+
+@dataclass(frozen=True)
+class PushFan:
+    """The catches a design push calls for along a reference (:func:`push_fan`).
+
+    Attributes
+    ----------
+    impulse : float
+        The design push (N s).
+    speed_change : float
+        The velocity it adds to the flat output (m/s) right after it
+        (:func:`flat_speed_change`).
+    above : float
+        Reference speeds (m/s) at or below which no fan is checked (:data:`FAN_FLOOR`).
+    speeds : ndarray, shape (C,)
+        Speeds of the palette's pushed catches (m/s), ascending.
+    tolerance : ndarray, shape (C,)
+        The velocity radius of their start domains S (m/s).
+    paths : tuple of ndarray, shape (K_c, 2)
+        Disc centres of each speed's catches' swept D' (:func:`swept_discs`), the catch
+        heading along +x from its start at the origin.
+    reaches : tuple of ndarray, shape (K_c,)
+        Their radii (m), grown by one cell of the catches' placement grid.
+    """
+
+    impulse: float
+    speed_change: float
+    above: float
+    speeds: FloatArray
+    tolerance: FloatArray
+    paths: tuple[FloatArray, ...]
+    reaches: tuple[FloatArray, ...]
+
+    def samples(
+        self, position: FloatArray, velocity: FloatArray
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """Discs (centres (K, 2), radii (K,)) of the catches of every state the design
+        push leaves at reference ``position`` (2,) moving at ``velocity`` (2,), pushed
+        in each of :data:`FAN_DIRECTIONS` directions; None when one of these states is
+        faster or slower than every pushed catch's S holds (no verified catch)."""
+        centres, radii = [], []
+        for k in range(FAN_DIRECTIONS):
+            a = 2.0 * math.pi * k / FAN_DIRECTIONS
+            w = velocity + self.speed_change * np.array([math.cos(a), math.sin(a)])
+            speed = float(np.hypot(*w))
+            j = int(np.argmin(np.abs(self.speeds - speed)))
+            if abs(float(self.speeds[j]) - speed) > float(self.tolerance[j]):
+                return None
+            h = math.atan2(w[1], w[0]) if speed > 1e-9 else 0.0
+            c, s = math.cos(h), math.sin(h)
+            centres.append(position + self.paths[j] @ np.array([[c, s], [-s, c]]))
+            radii.append(self.reaches[j])
+        return np.concatenate(centres), np.concatenate(radii)
+
+
+def flat_speed_change(params: BallbotParams, impulse: float) -> float:
+    """The flat output's velocity change (m/s) that a push of ``impulse`` (N s) on the
+    body makes, along the push: the 3D model pushed at upright rest, read right after.
+
+    By momentum alone the centre of mass gains J / M (M the body's and the ball's mass
+    together: 0.296 m/s for 16 N s on the CMU ballbot); the flat output x + L φ, whose
+    L weighs the lean rate the push starts, gains 3.7 % more (0.307 m/s). The change is
+    linear in J and the same at any speed and, within 1 %, at the maneuvers' leans
+    (``tests/test_push_fan.py``).
+    """
+    from gracenav.policies import flat_position_state
+    from gracenav.sim import Model3DPlant, position_state
+
+    plant = Model3DPlant(params)
+    plant.reset(np.zeros(8))
+    plant.push(np.array([float(impulse), 0.0]))
+    x = plant.state()
+    flat = flat_position_state(position_state(x, params.ball_radius), x[2:4], x[6:8], params)
+    return float(flat[2])
+
+
+def push_fan(palette: Palette, impulse: float, step: float) -> PushFan | None:
+    """The push fan of a design push of ``impulse`` (N s) for ``palette``, its catches'
+    discs at most ``step`` (m) apart; None for no push.
+
+    The pushed catches' S hold the flat output's state, whose velocity the push
+    changes by :func:`flat_speed_change`.
+
+    Raises
+    ------
+    ConfigError
+        If ``impulse`` > 0 and the palette has no pushed catches.
+    """
+    if impulse <= 0.0:
+        return None
+    pushed = [c for c in palette.catches if lean_class_of(c) == PUSHED]
+    if not pushed:
+        raise ConfigError(
+            "a design push needs a palette with pushed catches; build it with "
+            "`gracenav palette build` (catches on), or set design_push to 0"
+        )
+    opts = palette.options.catch
+    slack = palette.d / (opts.grid_divisions if opts is not None else 1)
+    by_speed: dict[float, list[MotionPolicy]] = {}
+    for c in pushed:
+        by_speed.setdefault(round(float(c.primitive.start_velocity[0]), 9), []).append(c)
+    speeds = sorted(by_speed)
+    paths, reaches, tolerance = [], [], []
+    for v in speeds:
+        discs = [swept_discs(c, step) for c in by_speed[v]]
+        paths.append(np.concatenate([d[0] for d in discs]))
+        reaches.append(np.concatenate([d[1] for d in discs]) + slack)
+        # The narrowest S of this speed: the one the fan's state must lie in.
+        tolerance.append(min(c.start_radii.velocity for c in by_speed[v]))
+    return PushFan(
+        impulse=float(impulse),
+        speed_change=flat_speed_change(palette.params, float(impulse)),
+        above=FAN_FLOOR,
+        speeds=np.array(speeds),
+        tolerance=np.array(tolerance),
+        paths=tuple(paths),
+        reaches=tuple(reaches),
+    )
+
+
 def _sweep(
     policy: MotionPolicy,
     step: float,
     samples: tuple[FloatArray, FloatArray, IntArray] | None = None,
     speed_clearance: float = 0.0,
+    fan: PushFan | None = None,
 ) -> _Sweep:
     """Select samples of the reference path (led by half the stopping allowance times
     the velocity) at most ``step`` of arc (plus one tick) apart and the conservative
     reach of D' around each, plus half the allowance ``speed_clearance`` (s) times the
     reference speed (see :func:`build_library`). ``samples``: :func:`sweep_samples`
-    of the policy's primitive with that lead, if already computed."""
+    of the policy's primitive with that lead, if already computed. With ``fan``, the
+    discs of the catches of the design push (:meth:`PushFan.samples`) at the samples
+    faster than ``fan.above``, at least :data:`FAN_PERIOD` apart, are checked too; a
+    policy with a pushed state that no catch holds gets an infinite reach (it is
+    placed nowhere)."""
     prim = policy.primitive
     half = 0.5 * speed_clearance
     pos, cum, sel = samples if samples is not None else sweep_samples(policy, step, half)
@@ -106,8 +293,10 @@ def _sweep(
         reach[:-1] = np.maximum(reach[:-1], seg_reach)
         reach[1:] = np.maximum(reach[1:], seg_reach)
     offsets = pos[sel]
-    first = np.arange(0, sel.size, _GROUP, dtype=np.int64)
-    size = np.minimum(_GROUP, sel.size - first)
+    if fan is not None:
+        offsets, reach = _with_fan(prim, sel, offsets, reach, fan)
+    first = np.arange(0, offsets.shape[0], _GROUP, dtype=np.int64)
+    size = np.minimum(_GROUP, offsets.shape[0] - first)
     centres = 0.5 * (
         np.minimum.reduceat(offsets, first, axis=0) + np.maximum.reduceat(offsets, first, axis=0)
     )
@@ -115,6 +304,29 @@ def _sweep(
     greach = np.maximum.reduceat(np.hypot(*(offsets - centres[own]).T) + reach, first)
     total = float(np.max(np.hypot(*offsets.T) + reach))
     return _Sweep(offsets, reach, centres, greach, first, size, total)
+
+
+def _with_fan(
+    prim: Any, sel: IntArray, offsets: FloatArray, reach: FloatArray, fan: PushFan
+) -> tuple[FloatArray, FloatArray]:
+    """``offsets`` and ``reach`` with the push fan's discs appended (see :func:`_sweep`)."""
+    ref = prim.position[:, :2] - prim.position[0, :2]
+    vel = prim.position[:, 2:4]
+    fast = sel[np.hypot(vel[sel, 0], vel[sel, 1]) > fan.above + 1e-9]
+    picked: list[int] = []
+    for k in fast:
+        if not picked or (k - picked[-1]) * prim.dt >= FAN_PERIOD - 1e-9:
+            picked.append(int(k))
+    if fast.size and picked[-1] != int(fast[-1]):
+        picked.append(int(fast[-1]))
+    more_o, more_r = [offsets], [reach]
+    for k in picked:
+        got = fan.samples(ref[k], vel[k])
+        if got is None:
+            return offsets, np.full(reach.shape, np.inf)
+        more_o.append(got[0])
+        more_r.append(got[1])
+    return np.concatenate(more_o), np.concatenate(more_r)
 
 
 def _check_sweeps(

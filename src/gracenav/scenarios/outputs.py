@@ -31,6 +31,7 @@ def summary_dict(result: ScenarioResult) -> dict[str, Any]:
         "library_spacing_m": None if result.library is None else float(result.library.spacing),
         "library_region": _region(result),
         "speed_clearance_s": sc.speed_clearance,
+        "design_push_ns": sc.design_push,
         "graph_edges": result.graph_edges,
         "coverage": _json_value(result.coverage),
         "library_and_graph_s": result.library_seconds,

@@ -66,8 +66,9 @@ class PreparedLibrary:
 def library_key(scenario: Scenario, palette: Any) -> str:
     """What a scenario's library depends on, as a string (inputs only, no computed
     float): palette key, map source, footprint, halving limit (None: chosen within the
-    memory budget, which then counts too), library seed, stopping allowance and region
-    (with the task's positions and the margin unless it is the whole map)."""
+    memory budget, which then counts too), library seed, stopping allowance, design
+    push (when there is one) and region (with the task's positions and the margin
+    unless it is the whole map)."""
     src = scenario.map_source
     where = json.dumps(src, sort_keys=True) if isinstance(src, dict) else str(src)
     region: list[Any] = [scenario.region]
@@ -85,6 +86,7 @@ def library_key(scenario: Scenario, palette: Any) -> str:
             scenario.max_halvings,
             scenario.library_seed,
             repr(scenario.speed_clearance),
+            *([] if scenario.design_push == 0.0 else ["design_push", repr(scenario.design_push)]),
             *([] if scenario.max_halvings is not None else [repr(scenario.memory_limit)]),
         ]
     )
@@ -131,6 +133,7 @@ def prepare_library(scenario: Scenario, palette: Any | None = None) -> PreparedL
         max_halvings=halvings,
         seed=scenario.library_seed,
         speed_clearance=scenario.speed_clearance,
+        design_push=scenario.design_push,
         memory_limit=None,
         anchor=lattice_anchor(scenario),
     )

@@ -14,7 +14,7 @@ import numpy as np
 from gracenav._util.io import load_document
 from gracenav._util.validate import Fields, require_mapping
 from gracenav.errors import ConfigError
-from gracenav.library import DEFAULT_SPEED_CLEARANCE, MAX_SPEED_CLEARANCE
+from gracenav.library import DEFAULT_SPEED_CLEARANCE, MAX_DESIGN_PUSH, MAX_SPEED_CLEARANCE
 from gracenav.params import BallbotParams
 from gracenav.planning.graph import CostCriterion, CostName
 from gracenav.planning.repair import ObstacleSensing
@@ -90,6 +90,10 @@ class Scenario:
     speed_clearance : float
         ``planner.speed_clearance``: the library's stopping allowance (s; see
         :func:`gracenav.library.build_library`).
+    design_push : float
+        ``planner.design_push``: the push (N s) the library keeps room to catch where
+        it moves faster than the palette's base cruise speed (0: none; see
+        :func:`gracenav.library.build_library`).
     moving_obstacles : tuple of MovingObstacle
         Obstacles not in the map, learned within ``sensing_range`` (m) of the robot.
     sensing_range : float
@@ -136,6 +140,7 @@ class Scenario:
     capture: bool = True
     library_seed: int = 0
     speed_clearance: float = DEFAULT_SPEED_CLEARANCE
+    design_push: float = 0.0
     moving_obstacles: tuple[MovingObstacle, ...] = ()
     sensing_range: float = 3.0
     memory_limit: float = DEFAULT_MEMORY_LIMIT_GIB * GIB
@@ -269,6 +274,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
             "capture",
             "seed",
             "speed_clearance",
+            "design_push",
             "memory_limit_gib",
             "region",
             "region_margin",
@@ -289,6 +295,9 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         minimum=0.0,
         maximum=MAX_SPEED_CLEARANCE,
         unit="s",
+    )
+    design_push = planner.number(
+        "design_push", 0.0, minimum=0.0, maximum=MAX_DESIGN_PUSH, unit="N s"
     )
     memory_gib = planner.number(
         "memory_limit_gib",
@@ -403,6 +412,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         capture=capture,
         library_seed=library_seed,
         speed_clearance=speed_clearance,
+        design_push=design_push,
         memory_limit=memory_gib * GIB,
         region=region,  # type: ignore[arg-type]
         region_margin=region_margin,

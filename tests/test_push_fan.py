@@ -1,0 +1,159 @@
+"""Design push: the library keeps room, where it moves fast, for the catches of every
+state a push of the design impulse leaves (gracenav.library.sweeps.PushFan)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gracenav import BallbotParams, ConfigError
+from gracenav.execution.capture import capture_for
+from gracenav.library import build_library, push_fan
+from gracenav.library import sweeps as sweeps_module
+from gracenav.library.sweeps import FAN_DIRECTIONS, FAN_FLOOR, FAN_PERIOD, flat_speed_change
+from gracenav.policies import flat_position_state
+from gracenav.scenarios import parse_scenario
+from gracenav.scenarios.run import library_key
+from gracenav.sim import Model3DPlant, position_state, state_from_position
+from gracenav.world import load_map
+
+ROOT = Path(__file__).resolve().parent.parent
+BOX = ROOT / "examples" / "maps" / "room_5m_box.yaml"
+PARAMS = BallbotParams()
+
+
+def _kick(x0: np.ndarray, impulse: float) -> float:
+    """The flat output's velocity change along x of the 3D model pushed at ``x0``."""
+    plant = Model3DPlant(PARAMS)
+    plant.reset(x0)
+    r = PARAMS.ball_radius
+
+    def flat(x: np.ndarray) -> np.ndarray:
+        return flat_position_state(position_state(x, r), x[2:4], x[6:8], PARAMS)
+
+    before = flat(plant.state())
+    plant.push(np.array([impulse, 0.0]))
+    return float(flat(plant.state())[2] - before[2])
+
+
+def test_flat_speed_change_is_the_models_kick() -> None:
+    """Momentum gives the centre of mass J / M; the flat output gains a few % more (its
+    L weighs the lean rate the push starts). Linear in J, the same at speed and at a
+    maneuver's lean (within 1 %), so the fan's one figure holds along a reference."""
+    mass = PARAMS.body_mass + PARAMS.ball_mass
+    dv16 = flat_speed_change(PARAMS, 16.0)
+    assert 1.0 < dv16 / (16.0 / mass) < 1.06
+    assert flat_speed_change(PARAMS, 4.0) == pytest.approx(dv16 / 4.0, rel=1e-9)
+    moving = state_from_position(np.array([0.0, 0.0, 1.0, 0.3]), PARAMS.ball_radius)
+    assert _kick(moving, 16.0) == pytest.approx(dv16, rel=1e-9)
+    leaning = moving.copy()
+    leaning[2] = np.radians(5.0)
+    leaning[6] = 0.1
+    assert _kick(leaning, 16.0) == pytest.approx(dv16, rel=0.01)
+
+
+def test_no_design_push_and_the_shipped_palette_change_nothing(palette) -> None:
+    """Without a design push there is no fan; the shipped palette's references stay at or
+    below FAN_FLOOR, so even a design push leaves its libraries as they are."""
+    assert push_fan(palette, 0.0, 0.05) is None
+    top = max(
+        float(np.max(np.hypot(p.primitive.position[:, 2], p.primitive.position[:, 3])))
+        for p in palette.policies
+    )
+    assert top <= FAN_FLOOR
+    room = load_map(BOX)
+    plain = build_library(palette, room, max_halvings=0)
+    pushed = build_library(palette, room, max_halvings=0, design_push=16.0)
+    assert pushed.design_push == 16.0 and plain.design_push == 0.0
+    np.testing.assert_array_equal(plain.palette_index, pushed.palette_index)
+    np.testing.assert_array_equal(plain.start_xy, pushed.start_xy)
+    np.testing.assert_array_equal(plain.orientation, pushed.orientation)
+
+
+def _rows(lib) -> set[tuple[int, int, float, float]]:
+    return {
+        (int(p), int(o), round(float(x), 6), round(float(y), 6))
+        for p, o, (x, y) in zip(lib.palette_index, lib.orientation, lib.start_xy, strict=True)
+    }
+
+
+def test_fan_keeps_policies_only_where_a_catch_of_every_pushed_state_fits(
+    palette, monkeypatch
+) -> None:
+    """With the fan from 0.3 m/s (the shipped palette's cruise is 0.5 m/s) and a 7.5 N s
+    design push, the library drops policies near the walls, and at every fan tick of
+    the policies it keeps, the capture planner (its own catch placement and clearance
+    test, not the fan's discs) finds a clear pushed catch for the state pushed in each
+    of the fan's directions."""
+    monkeypatch.setattr(sweeps_module, "FAN_FLOOR", 0.3)
+    room = load_map(BOX)
+    plain = build_library(palette, room, max_halvings=0)
+    lib = build_library(palette, room, max_halvings=0, design_push=7.5)
+    kept, before = _rows(lib), _rows(plain)
+    assert kept < before  # a strict subset: the fan removed policies
+    fan = push_fan(palette, 7.5, float(room.resolution))
+    assert fan is not None and fan.above == 0.3
+    capture = capture_for(lib)
+    rng = np.random.default_rng(3)
+    moving = [
+        i
+        for i in range(len(lib))
+        if np.max(np.hypot(*lib.policy(i).policy.primitive.position[:, 2:4].T)) > 0.3
+    ]
+    assert len(moving) > 50
+    checked = 0
+    for i in rng.choice(moving, 40, replace=False):
+        inst = lib.policy(int(i))
+        prim = inst.policy.primitive
+        rot = inst.rotation
+        speed = np.hypot(prim.position[:, 2], prim.position[:, 3])
+        ticks = np.flatnonzero(speed > 0.3)[:: round(FAN_PERIOD / prim.dt)]
+        for k in ticks:
+            p = inst.start_xy + rot @ (prim.position[k, :2] - prim.position[0, :2])
+            v = rot @ prim.position[k, 2:4]
+            for j in range(FAN_DIRECTIONS):
+                a = 2.0 * np.pi * j / FAN_DIRECTIONS
+                state = np.concatenate([p, v + fan.speed_change * np.array([np.cos(a), np.sin(a)])])
+                clear = False
+                for _, _, m, heading, start, _ in capture._candidates(state, ("pushed",), state):
+                    c, s = np.cos(heading), np.sin(heading)
+                    path = start + m.path @ np.array([[c, -s], [s, c]]).T
+                    if np.all(capture._clear(path, m.reach)):
+                        clear = True
+                        break
+                assert clear, (inst.name, int(k), j)
+                checked += 1
+    assert checked > 200
+
+
+def test_pushed_speeds_beyond_every_catch_place_nothing(palette, monkeypatch) -> None:
+    """A design push that takes the fan's states beyond the fastest pushed catch leaves
+    out every policy with a fan tick: none faster than the floor remains."""
+    monkeypatch.setattr(sweeps_module, "FAN_FLOOR", 0.3)
+    fan = push_fan(palette, 60.0, 0.05)
+    assert fan is not None and 0.3 + fan.speed_change > fan.speeds[-1] + fan.tolerance[-1]
+    lib = build_library(palette, load_map(BOX), max_halvings=0, design_push=60.0)
+    assert len(lib) > 0  # the rest trims and slow maneuvers stay
+    for i in range(len(lib)):
+        pos = lib.policy(i).policy.primitive.position
+        assert np.max(np.hypot(pos[:, 2], pos[:, 3])) <= 0.3 + 1e-9
+
+
+def test_design_push_scenario_key(palette) -> None:
+    """``planner.design_push`` (N s) is read, checked, and keys the library."""
+    doc = {
+        "name": "design push",
+        "map": {"bounds": [[0.0, 0.0], [5.0, 5.0]], "resolution": 0.05},
+        "task": {"kind": "point_to_point", "goal": [4.0, 4.0, 0.0, 0.0], "starts": [[1, 1, 0, 0]]},
+    }
+    plain = parse_scenario(doc, source="t")
+    assert plain.design_push == 0.0
+    pushed = parse_scenario({**doc, "planner": {"design_push": 16}}, source="t")
+    assert pushed.design_push == 16.0
+    assert library_key(plain, palette) != library_key(pushed, palette)
+    with pytest.raises(ConfigError, match=r"'planner\.design_push' must be a number in"):
+        parse_scenario({**doc, "planner": {"design_push": -1}}, source="t")
+    with pytest.raises(ConfigError, match="design_push must be an impulse"):
+        build_library(palette, load_map(BOX), design_push=-1.0)
