@@ -15,7 +15,7 @@ clearance).
 mode: the task stops there); ``--mode fallback`` resumes from it. The library keeps
 the default stopping allowance (``--speed-clearance``, gracenav.library.build_library;
 0 is the paper's instantiation); ``--design-push J`` keeps room, where the robot
-moves faster than the palette's base cruise speed, for the catches of a push of J N s
+moves faster than 0.8 m/s (FAN_FLOOR), for the catches of a push of J N s
 (planner.design_push). ``--plant mujoco`` runs the same robot in MuJoCo
 instead of the 3D model the policies were verified on.
 Target (paper mode): >= 99 % of >= 300 runs with pushes of 0-16 N s reach the
@@ -152,7 +152,7 @@ def main() -> None:
         "--design-push",
         type=float,
         default=0.0,
-        help="push (N s) the library keeps room to catch above the base cruise speed "
+        help="push (N s) the library keeps room to catch above 0.8 m/s "
         "(default 0: none)",
     )
     ap.add_argument(

@@ -22,10 +22,10 @@ gracenav / decoupled, median max jerk and median p95 jerk (from the true state,
 limits (its maneuvers' and the verified balancing domain's); for the pairs also the
 median of time / T* with L the straight distance (a lower bound on the path, so T*
 stays a bound). ``--design-push J`` sets ``planner.design_push`` (N s) on both
-measurements: the library then keeps room, where it moves faster than the palette's
-base cruise speed, for the catches of a push of J (with the pairs, the campaign's
-draws are then checked against that library). Progress goes to stderr, the tables to
-stdout.
+measurements: the library then keeps room, where it moves faster than 0.8 m/s
+(``gracenav.library.sweeps.FAN_FLOOR``), for the catches of a push of J (with the
+pairs, the campaign's draws are then checked against that library). Progress goes to
+stderr, the tables to stdout.
 
     OPENBLAS_NUM_THREADS=1 nice -n 5 .venv/bin/python bench/bench_speed.py
         [--trials 20] [--seed N] [--only long|pairs] [--lean-limit-deg 5]

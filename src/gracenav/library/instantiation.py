@@ -715,10 +715,10 @@ def build_library(
         rest there is the end of the library's rest trims, reached without a terminal.
         Default: the lattice starts at the map's minimum corner.
     design_push : float
-        Design push (N s, 0: none): where the reference is faster than the palette's
-        base cruise speed, the catches of every state this push leaves must fit too
-        (see the notes). Policies whose pushed states no verified catch holds are not
-        placed.
+        Design push (N s, 0: none): where the reference is faster than
+        :data:`~gracenav.library.sweeps.FAN_FLOOR`, the catches of every state this
+        push leaves must fit too (see the notes). Policies whose pushed states no
+        verified catch holds are not placed.
 
     Returns
     -------
@@ -776,16 +776,17 @@ def build_library(
     **Design push.** A catch's reach grows with the square of its speed (0.71 m from
     0.8 m/s, 2.81 m from 1.3 m/s on the speed-level palette), faster than any
     allowance proportional to speed. With ``design_push`` J > 0, at the samples where
-    the reference speed exceeds the palette's base cruise speed (every
-    :data:`~gracenav.library.sweeps.FAN_PERIOD` s at most), the robot's state is
+    the flat output's reference speed exceeds
+    :data:`~gracenav.library.sweeps.FAN_FLOOR` (every
+    :data:`~gracenav.library.sweeps.FAN_PERIOD` s at most), the flat output's state is
     pushed by J in each of :data:`~gracenav.library.sweeps.FAN_DIRECTIONS`
-    directions: the velocity changes by J / M (M the robot's mass), and the pushed
-    catch of the nearest speed, turned along the new velocity and started at the
-    reference point, must fit with its swept D' grown by one cell of the catches'
-    placement grid (:class:`~gracenav.library.sweeps.PushFan`). A pushed speed that no
-    pushed catch's S holds (beyond the fastest catch the torque limit lets verify)
-    leaves the policy out everywhere. At and below the base cruise speed the
-    allowance above applies alone.
+    directions (its velocity changes by
+    :func:`~gracenav.library.sweeps.flat_speed_change`), and the pushed catch of the
+    nearest speed, turned along the new velocity and started there, must fit with its
+    swept D' grown by one cell of the catches' placement grid
+    (:class:`~gracenav.library.sweeps.PushFan`). A pushed speed that no pushed catch's
+    S holds (beyond the fastest catch the torque limit lets verify) leaves the policy
+    out everywhere. At and below the floor the allowance above applies alone.
 
     **Coverage** is the fraction of ``coverage_samples`` position states, uniform
     over free positions with clearance >= f and velocities in [−v_max, v_max]² (v_max

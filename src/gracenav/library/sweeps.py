@@ -19,6 +19,7 @@ from gracenav.library.types import ORIENTATIONS, BoolArray, FloatArray, IntArray
 from gracenav.palette import Palette
 from gracenav.policies import MotionPolicy
 from gracenav.policies.catches import PUSHED, lean_class_of
+from gracenav.primitives.references import flat_output_lengths
 from gracenav.world import WorldMap
 
 if TYPE_CHECKING:
@@ -52,13 +53,13 @@ FAN_DIRECTIONS = 8
 #: The reference ticks a push fan is checked at are at least this far apart (s).
 FAN_PERIOD = 0.25
 
-#: Reference speeds (m/s) at or below which a push fan is not checked. The shipped
-#: palette's references reach 0.945 m/s, and with the stopping allowance alone every
-#: one of 900 seeded pushes of up to 16 N s on the 5 m room was caught there
-#: (bench/bench_pushes.py); a fan below it costs reachability near walls that no
-#: measured push needed (the 5 m room's task from (1, 1) has no way out with a fan
-#: from 0.5 m/s).
-FAN_FLOOR = 0.95
+#: Flat-output reference speeds (m/s) at or below which a push fan is not checked.
+#: The shipped palette's references reach 0.773 m/s (the ball 0.945 m/s), and with the
+#: stopping allowance alone every one of 900 seeded pushes of up to 16 N s on the 5 m
+#: room was caught there (bench/bench_pushes.py); a fan below it costs reachability
+#: near walls that no measured push needed (the 5 m room's task from (1, 1) has no
+#: way out with a fan from 0.5 m/s).
+FAN_FLOOR = 0.8
 
 
 @dataclass(frozen=True)
@@ -157,7 +158,11 @@ class PushFan:
         The velocity it adds to the flat output (m/s) right after it
         (:func:`flat_speed_change`).
     above : float
-        Reference speeds (m/s) at or below which no fan is checked (:data:`FAN_FLOOR`).
+        Flat-output reference speeds (m/s) at or below which no fan is checked
+        (:data:`FAN_FLOOR`).
+    flat_length : ndarray, shape (2,)
+        L of the flat output x + L φ per axis (m): the pushed catches' S hold its state,
+        so the fan starts them at the reference's flat output.
     speeds : ndarray, shape (C,)
         Speeds of the palette's pushed catches (m/s), ascending.
     tolerance : ndarray, shape (C,)
@@ -172,6 +177,7 @@ class PushFan:
     impulse: float
     speed_change: float
     above: float
+    flat_length: FloatArray
     speeds: FloatArray
     tolerance: FloatArray
     paths: tuple[FloatArray, ...]
@@ -181,7 +187,7 @@ class PushFan:
         self, position: FloatArray, velocity: FloatArray
     ) -> tuple[FloatArray, FloatArray] | None:
         """Discs (centres (K, 2), radii (K,)) of the catches of every state the design
-        push leaves at reference ``position`` (2,) moving at ``velocity`` (2,), pushed
+        push leaves at flat-output ``position`` (2,) moving at ``velocity`` (2,), pushed
         in each of :data:`FAN_DIRECTIONS` directions; None when one of these states is
         faster or slower than every pushed catch's S holds (no verified catch)."""
         centres, radii = [], []
@@ -257,6 +263,7 @@ def push_fan(palette: Palette, impulse: float, step: float) -> PushFan | None:
         impulse=float(impulse),
         speed_change=flat_speed_change(palette.params, float(impulse)),
         above=FAN_FLOOR,
+        flat_length=flat_output_lengths(palette.params),
         speeds=np.array(speeds),
         tolerance=np.array(tolerance),
         paths=tuple(paths),
@@ -309,9 +316,10 @@ def _sweep(
 def _with_fan(
     prim: Any, sel: IntArray, offsets: FloatArray, reach: FloatArray, fan: PushFan
 ) -> tuple[FloatArray, FloatArray]:
-    """``offsets`` and ``reach`` with the push fan's discs appended (see :func:`_sweep`)."""
-    ref = prim.position[:, :2] - prim.position[0, :2]
-    vel = prim.position[:, 2:4]
+    """``offsets`` and ``reach`` with the push fan's discs appended (see :func:`_sweep`):
+    at the reference's flat output, which the pushed catches' S hold."""
+    ref = prim.position[:, :2] - prim.position[0, :2] + fan.flat_length * prim.states[:, 2:4]
+    vel = prim.position[:, 2:4] + fan.flat_length * prim.states[:, 6:8]
     fast = sel[np.hypot(vel[sel, 0], vel[sel, 1]) > fan.above + 1e-9]
     picked: list[int] = []
     for k in fast:

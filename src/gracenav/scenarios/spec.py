@@ -92,7 +92,7 @@ class Scenario:
         :func:`gracenav.library.build_library`).
     design_push : float
         ``planner.design_push``: the push (N s) the library keeps room to catch where
-        it moves faster than the palette's base cruise speed (0: none; see
+        it moves faster than 0.8 m/s (0: none; see
         :func:`gracenav.library.build_library`).
     moving_obstacles : tuple of MovingObstacle
         Obstacles not in the map, learned within ``sensing_range`` (m) of the robot.
