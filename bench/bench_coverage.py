@@ -24,7 +24,11 @@ Targets: >= 99 % at margin 0.3 m and >= 90 % at margin 0.1 m on the 5 m room, th
 paper's Fig. 5 map and the cluttered 6 m room; library + graph on the paper-size
 3.5 m area <= 100 ms.
 
+``--design-push J`` builds every library with ``design_push`` J (N s; see
+gracenav.library.build_library).
+
     OPENBLAS_NUM_THREADS=1 python bench/bench_coverage.py [--halvings 1] [--samples 20000]
+        [--brute 2000] [--design-push 0]
 """
 
 from __future__ import annotations
@@ -142,10 +146,16 @@ def main() -> None:
     ap.add_argument("--halvings", type=int, default=1, help="lattice halvings (default 1)")
     ap.add_argument("--samples", type=int, default=20_000, help="states per class")
     ap.add_argument("--brute", type=int, default=2_000, help="states checked by brute force")
+    ap.add_argument(
+        "--design-push", type=float, default=0.0, help="libraries' design push (N s, default 0)"
+    )
     args = ap.parse_args()
     pal = load_palette()
     rng = np.random.default_rng(0)
-    print(f"palette: {len(pal)} policies; lattice halvings {args.halvings}; |v| <= {SPEED} m/s")
+    print(
+        f"palette: {len(pal)} policies; lattice halvings {args.halvings}; |v| <= {SPEED} m/s; "
+        f"design push {args.design_push:g} N s"
+    )
     header = (
         "map",
         "policies",
@@ -161,7 +171,12 @@ def main() -> None:
         doc = yaml.safe_load(path.read_text())
         world = load_map(doc["map"] if "task" in doc else path)
         lib = build_library(
-            pal, world, footprint_radius=FOOTPRINT, max_halvings=args.halvings, coverage_target=1.0
+            pal,
+            world,
+            footprint_radius=FOOTPRINT,
+            max_halvings=args.halvings,
+            coverage_target=1.0,
+            design_push=args.design_push,
         )
         capture = capture_for(lib)
         for label, margin in (("+0.3 m", 0.3), ("+0.1 m", 0.1), ("all free", 0.0)):
@@ -193,7 +208,7 @@ def main() -> None:
     times = []
     for _ in range(5):
         t0 = time.perf_counter()
-        build_graph(build_library(pal, free, max_halvings=0))
+        build_graph(build_library(pal, free, max_halvings=0, design_push=args.design_push))
         times.append(time.perf_counter() - t0)
     widths = [max(len(r[i]) for r in rows) for i in range(len(header))]
     for r in rows:
