@@ -75,6 +75,9 @@ DEFAULT_SPEED_CLEARANCE = 0.1
 #: Largest stopping allowance accepted (s).
 MAX_SPEED_CLEARANCE = 2.0
 
+#: Cells (types × lattice points) of the masks instantiation decides at once.
+_CHOOSE_CELLS = 2**22
+
 #: Largest design push accepted (N s): twice the capture regulators' largest verified push.
 MAX_DESIGN_PUSH = 80.0
 
@@ -187,27 +190,37 @@ def _choose(
     ``c0``), grouped by start domain size from the largest: a scale group (a policy, its
     larger-domain variants and its fine copies at one orientation) takes at each point
     the largest size whose swept D' fits, so a smaller size is only checked where every
-    larger one failed."""
+    larger one failed. The pairs come in no particular order (a scale group has one
+    type of each size, so the decisions of one size do not depend on each other)."""
     taken = np.zeros((int(types.scale_group.max(initial=-1)) + 1, points.shape[0]), dtype=bool)
     found_t: list[IntArray] = [np.zeros(0, dtype=np.int64)]
     found_q: list[IntArray] = [np.zeros(0, dtype=np.int64)]
+    placed_types = _placed_types(types)
+    first_reach = footprint + tables["sample_first_reach"]
+    total_reach = footprint + tables["type_total_reach"]
     for size in np.unique(types.start_radii[:, 0])[::-1]:
+        # A capture regulator is invariant under rotations (rest reference, round
+        # domains in the plane): one orientation suffices.
+        placed = np.flatnonzero((types.start_radii[:, 0] == size) & placed_types)
+        if placed.size == 0:
+            continue
+        group = types.scale_group[placed]
         sure_t: list[IntArray] = []
         sure_q: list[IntArray] = []
         undecided_t: list[IntArray] = []
         undecided_q: list[IntArray] = []
-        # A capture regulator is invariant under rotations (rest reference, round
-        # domains in the plane): one orientation suffices.
-        placed = (types.start_radii[:, 0] == size) & _placed_types(types)
-        for t in np.flatnonzero(placed):
-            maybe = np.flatnonzero(
-                (c0 >= footprint + tables["sample_first_reach"][t]) & ~taken[types.scale_group[t]]
-            )
-            sure = c0[maybe] >= footprint + tables["type_total_reach"][t]
-            sure_q.append(maybe[sure])
-            sure_t.append(np.full(int(np.count_nonzero(sure)), t, dtype=np.int64))
-            undecided_q.append(maybe[~sure])
-            undecided_t.append(np.full(int(np.count_nonzero(~sure)), t, dtype=np.int64))
+        # Types × points at once, in chunks of points that bound the masks' memory.
+        chunk = max(1, _CHOOSE_CELLS // placed.size)
+        for a in range(0, points.shape[0], chunk):
+            c = c0[a : a + chunk]
+            maybe = (c[None, :] >= first_reach[placed][:, None]) & ~taken[group, a : a + chunk]
+            ti, qi = np.nonzero(maybe)
+            t, q = placed[ti], qi + a
+            sure = c[qi] >= total_reach[t]
+            sure_t.append(t[sure])
+            sure_q.append(q[sure])
+            undecided_t.append(t[~sure])
+            undecided_q.append(q[~sure])
         ut, uq = np.concatenate(undecided_t), np.concatenate(undecided_q)
         ok = _check_sweeps(world_map, points, ut, uq, tables, footprint)
         lt = np.concatenate([*sure_t, ut[ok]])

@@ -49,6 +49,7 @@ from __future__ import annotations
 import dataclasses
 import enum
 import math
+import weakref
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -458,6 +459,49 @@ def _gains_classes(library: PolicyLibrary) -> IntArray:
     return out
 
 
+#: :func:`_type_edges`'s tables by the identity of the library's types (held weakly;
+#: every library of a palette shares its types), for the palette (held weakly) and the
+#: (spacing, atol) they were computed for: they depend on nothing else.
+_TYPE_EDGES: dict[int, tuple[weakref.ref[Any], weakref.ref[Any], dict[str, Any]]] = {}
+
+
+_TypeEdges = tuple[IntArray, NDArray[np.int32], IntArray, NDArray[np.int32], IntArray]
+
+
+def _type_edges(library: PolicyLibrary, atol: float) -> _TypeEdges:
+    """The type-level tables of :class:`LatticeEdges` (``succ_ptr``, ``succ_type``,
+    ``pred_ptr``, ``pred_type``, ``offset``), read-only, computed once per palette's
+    types, spacing and tolerance (:func:`_type_compatibility`)."""
+    types, palette = library.types, library.palette
+    key = id(types)
+    entry = _TYPE_EDGES.get(key)
+    if entry is None or entry[0]() is not types or entry[1]() is not palette:
+
+        def forget(ref: weakref.ref[Any]) -> None:
+            if key in _TYPE_EDGES and _TYPE_EDGES[key][0] is ref:
+                del _TYPE_EDGES[key]
+
+        entry = _TYPE_EDGES[key] = (weakref.ref(types, forget), weakref.ref(palette), {})
+    which = f"{library.spacing!r}-{atol!r}"
+    got = entry[2].get(which)
+    if got is None:
+        compat, cells = _type_compatibility(library, atol)
+        succ_ptr = np.concatenate([[0], np.cumsum(compat.sum(axis=1))]).astype(np.int64)
+        succ_type = np.nonzero(compat)[1].astype(np.int32)
+        pred_ptr = np.concatenate([[0], np.cumsum(compat.sum(axis=0))]).astype(np.int64)
+        # Predecessor types grouped by end offset (one table row per group), types ascending.
+        succ_of, pred_of = np.nonzero(compat.T)
+        order = np.lexsort((pred_of, cells[pred_of, 0], cells[pred_of, 1], succ_of))
+        pred_type = pred_of[order].astype(np.int32)
+        offset = np.ascontiguousarray(cells, dtype=np.int64)
+        got = (succ_ptr, succ_type, pred_ptr, pred_type, offset)
+        for a in got:
+            a.flags.writeable = False
+        entry[2][which] = got
+    out: _TypeEdges = got
+    return out
+
+
 def _type_compatibility(library: PolicyLibrary, atol: float) -> tuple[BoolArray, IntArray]:
     """Compatible type pairs (T, T) and each type's end offset in lattice cells (T, 2);
     types whose end is off the lattice have no successor."""
@@ -525,15 +569,8 @@ def build_graph(library: PolicyLibrary, *, atol: float = DEFAULT_ATOL) -> Prepar
         )
     ny, nx = library.lattice_shape
     n_points = nx * ny
-    compat, cells = _type_compatibility(library, atol)
-    n_types = compat.shape[0]
-    succ_ptr = np.concatenate([[0], np.cumsum(compat.sum(axis=1))]).astype(np.int64)
-    succ_type = np.nonzero(compat)[1].astype(np.int32)
-    pred_ptr = np.concatenate([[0], np.cumsum(compat.sum(axis=0))]).astype(np.int64)
-    # Predecessor types grouped by end offset (one table row per group), types ascending.
-    succ_of, pred_of = np.nonzero(compat.T)
-    order = np.lexsort((pred_of, cells[pred_of, 0], cells[pred_of, 1], succ_of))
-    pred_type = pred_of[order].astype(np.int32)
+    succ_ptr, succ_type, pred_ptr, pred_type, offset = _type_edges(library, atol)
+    n_types = offset.shape[0]
     row_type = np.ascontiguousarray(library.type_index, dtype=np.int32)
     cell = library.start_cell
     row_point = np.ascontiguousarray(cell[:, 1] * nx + cell[:, 0], dtype=np.int32)
@@ -553,7 +590,7 @@ def build_graph(library: PolicyLibrary, *, atol: float = DEFAULT_ATOL) -> Prepar
         succ_type=succ_type,
         pred_ptr=pred_ptr,
         pred_type=pred_type,
-        offset=np.ascontiguousarray(cells, dtype=np.int64),
+        offset=offset,
         type_first=type_first,
         table=table,
     )
