@@ -152,8 +152,7 @@ def main() -> None:
         "--design-push",
         type=float,
         default=0.0,
-        help="push (N s) the library keeps room to catch above 0.8 m/s "
-        "(default 0: none)",
+        help="push (N s) the library keeps room to catch above 0.8 m/s (default 0: none)",
     )
     ap.add_argument(
         "--plant",
