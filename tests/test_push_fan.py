@@ -166,3 +166,17 @@ def test_design_push_scenario_key(palette) -> None:
         parse_scenario({**doc, "planner": {"design_push": -1}}, source="t")
     with pytest.raises(ConfigError, match="design_push must be an impulse"):
         build_library(palette, load_map(BOX), design_push=-1.0)
+
+
+def test_memory_estimate_counts_the_design_push(palette, monkeypatch) -> None:
+    """The run's memory estimate sees the library the design push builds: fewer
+    policies than without it, and the library built stays within the estimate."""
+    from gracenav.scenarios import estimate_run_memory
+
+    monkeypatch.setattr(sweeps_module, "FAN_FLOOR", 0.3)
+    room = load_map(BOX)
+    plain = estimate_run_memory(room, palette, 0)
+    pushed = estimate_run_memory(room, palette, 0, design_push=7.5)
+    assert pushed.policies is not None and plain.policies is not None
+    assert pushed.policies < plain.policies
+    assert len(build_library(palette, room, max_halvings=0, design_push=7.5)) <= pushed.policies

@@ -137,6 +137,7 @@ def estimate_run_memory(
     speed_clearance: float = DEFAULT_SPEED_CLEARANCE,
     limit: float | None = None,
     whole_map: Any = None,
+    design_push: float = 0.0,
 ) -> MemoryEstimate:
     """Estimate the peak resident memory (bytes) of running a scenario on ``world_map``
     whose library refines the lattice ``halvings`` times (see the module docstring).
@@ -161,6 +162,8 @@ def estimate_run_memory(
     whole_map : WorldMap, optional
         The map the run is measured on, when ``world_map`` is a region of it that the
         library is built on (:mod:`gracenav.scenarios.region`): its cells count too.
+    design_push : float
+        The library's design push (N s).
 
     Returns
     -------
@@ -189,6 +192,7 @@ def estimate_run_memory(
         spacing,
         footprint_radius=footprint_radius,
         speed_clearance=speed_clearance,
+        design_push=design_push,
     )
     policies = est.upper()
     edges = STORED_EDGES_PER_POLICY * policies
@@ -209,6 +213,7 @@ def choose_halvings(
     keys: tuple[str, str] = ("planner.max_halvings", "planner.memory_limit_gib"),
     whole_map: Any = None,
     policy_cap: float | None = None,
+    design_push: float = 0.0,
 ) -> MemoryEstimate:
     """The halvings of a library that fit ``memory_limit`` bytes, with their estimate.
 
@@ -217,7 +222,7 @@ def choose_halvings(
 
     Parameters
     ----------
-    world_map, palette, footprint_radius, speed_clearance
+    world_map, palette, footprint_radius, speed_clearance, design_push
         As :func:`estimate_run_memory`.
     max_halvings : int or None
     memory_limit : float
@@ -256,6 +261,7 @@ def choose_halvings(
             speed_clearance=speed_clearance,
             limit=memory_limit,
             whole_map=whole_map,
+            design_push=design_push,
         )
         if est.bytes <= memory_limit:
             capped = (

@@ -536,6 +536,7 @@ def check_scenario(
             memory_limit=scenario.memory_limit,
             footprint_radius=scenario.footprint_radius,
             speed_clearance=scenario.speed_clearance,
+            design_push=scenario.design_push,
             source=scenario.source,
             whole_map=whole_map,
             policy_cap=policy_cap,
