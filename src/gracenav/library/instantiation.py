@@ -788,16 +788,17 @@ def build_library(
 
     **Design push.** A catch's reach grows with the square of its speed (0.71 m from
     0.8 m/s, 2.81 m from 1.3 m/s on the speed-level palette), faster than any
-    allowance proportional to speed. With ``design_push`` J > 0, at the samples where
-    the flat output's reference speed exceeds
-    :data:`~gracenav.library.sweeps.FAN_FLOOR` (every
-    :data:`~gracenav.library.sweeps.FAN_PERIOD` s at most), the flat output's state is
-    pushed by J in each of :data:`~gracenav.library.sweeps.FAN_DIRECTIONS`
-    directions (its velocity changes by
+    allowance proportional to speed. With ``design_push`` J > 0, wherever the flat
+    output's reference speed exceeds :data:`~gracenav.library.sweeps.FAN_FLOOR`, the
+    flat output's state is pushed by J in each of
+    :data:`~gracenav.library.sweeps.FAN_DIRECTIONS` directions (its velocity changes by
     :func:`~gracenav.library.sweeps.flat_speed_change`), and the pushed catch of the
     nearest speed, turned along the new velocity and started there, must fit with its
     swept D' grown by one cell of the catches' placement grid
-    (:class:`~gracenav.library.sweeps.PushFan`). A pushed speed that no pushed catch's
+    (:class:`~gracenav.library.sweeps.PushFan`). It is checked at states along the
+    reference whose catches' discs are at most
+    :data:`~gracenav.library.sweeps.FAN_GAP` from those of every state between them,
+    and every disc is grown by that. A pushed speed that no pushed catch's
     S holds (beyond the fastest catch the torque limit lets verify) leaves the policy
     out everywhere. At and below the floor the allowance above applies alone.
 

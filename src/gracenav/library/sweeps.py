@@ -28,7 +28,7 @@ if TYPE_CHECKING:
 __all__ = [
     "FAN_DIRECTIONS",
     "FAN_FLOOR",
-    "FAN_PERIOD",
+    "FAN_GAP",
     "PushFan",
     "flat_speed_change",
     "push_fan",
@@ -50,8 +50,13 @@ _GROUP = 8  # checked sweep samples per bounding disc of the hierarchical sweep 
 #: Directions of the design push a push fan checks, evenly spaced over the full turn.
 FAN_DIRECTIONS = 8
 
-#: The reference ticks a push fan is checked at are at least this far apart (s).
-FAN_PERIOD = 0.25
+#: Largest displacement (m) of a push fan's catch discs from a checked state to the
+#: states after it that are not checked (see :func:`_with_fan`): every disc is grown
+#: by it.
+FAN_GAP = 0.1
+
+#: Control ticks between the states a push fan's walk along a reference looks at.
+_FAN_STRIDE = 8
 
 #: Flat-output reference speeds (m/s) at or below which a push fan is not checked.
 #: The shipped palette's references reach 0.773 m/s (the ball 0.945 m/s), and with the
@@ -172,6 +177,8 @@ class PushFan:
         heading along +x from its start at the origin.
     reaches : tuple of ndarray, shape (K_c,)
         Their radii (m), grown by one cell of the catches' placement grid.
+    radius : ndarray, shape (C,)
+        The farthest disc centre of each speed's catches from their start (m).
     """
 
     impulse: float
@@ -182,6 +189,32 @@ class PushFan:
     tolerance: FloatArray
     paths: tuple[FloatArray, ...]
     reaches: tuple[FloatArray, ...]
+    radius: FloatArray
+
+    def members(self, velocity: FloatArray) -> IntArray | None:
+        """The catch speed (index into :attr:`speeds`, nearest speed) of the state
+        pushed in each of :data:`FAN_DIRECTIONS` directions at flat-output
+        ``velocity`` (..., 2), shape (..., FAN_DIRECTIONS); None when one of these
+        states is faster or slower than every pushed catch's S holds."""
+        a = 2.0 * np.pi * np.arange(FAN_DIRECTIONS) / FAN_DIRECTIONS
+        push = self.speed_change * np.stack([np.cos(a), np.sin(a)], axis=-1)
+        w = np.asarray(velocity, dtype=float)[..., None, :] + push
+        speed = np.hypot(w[..., 0], w[..., 1])
+        j = np.argmin(np.abs(self.speeds - speed[..., None]), axis=-1)
+        if np.any(np.abs(self.speeds[j] - speed) > self.tolerance[j]):
+            return None
+        out: IntArray = j
+        return out
+
+    def turn(self, members: IntArray, dv: float) -> float:
+        """Bound (m) on how far the discs of the catches ``members`` (a tick's, from
+        :meth:`members`) move when the velocity changes by ``dv`` (m/s) with the same
+        catches: a disc at r from the catch's start turns with the pushed velocity w,
+        by at most dv / |w| rad, and |w| is at least the catch's speed less its S's
+        velocity radius; never more than 2 r."""
+        r = self.radius[members]
+        slowest = np.maximum(self.speeds[members] - self.tolerance[members], 1e-9)
+        return float(np.max(np.minimum(2.0 * r, r * dv / slowest)))
 
     def samples(
         self, position: FloatArray, velocity: FloatArray
@@ -268,6 +301,7 @@ def push_fan(palette: Palette, impulse: float, step: float) -> PushFan | None:
         tolerance=np.array(tolerance),
         paths=tuple(paths),
         reaches=tuple(reaches),
+        radius=np.array([float(np.max(np.hypot(*p.T))) for p in paths]),
     )
 
 
@@ -283,10 +317,10 @@ def _sweep(
     reach of D' around each, plus half the allowance ``speed_clearance`` (s) times the
     reference speed (see :func:`build_library`). ``samples``: :func:`sweep_samples`
     of the policy's primitive with that lead, if already computed. With ``fan``, the
-    discs of the catches of the design push (:meth:`PushFan.samples`) at the samples
-    faster than ``fan.above``, at least :data:`FAN_PERIOD` apart, are checked too; a
-    policy with a pushed state that no catch holds gets an infinite reach (it is
-    placed nowhere)."""
+    discs of the catches of the design push (:meth:`PushFan.samples`) where the flat
+    output is faster than ``fan.above`` are checked too (:func:`_with_fan`); a policy
+    with a pushed state that no catch holds gets an infinite reach (it is placed
+    nowhere)."""
     prim = policy.primitive
     half = 0.5 * speed_clearance
     pos, cum, sel = samples if samples is not None else sweep_samples(policy, step, half)
@@ -316,24 +350,45 @@ def _sweep(
 def _with_fan(
     prim: Any, sel: IntArray, offsets: FloatArray, reach: FloatArray, fan: PushFan
 ) -> tuple[FloatArray, FloatArray]:
-    """``offsets`` and ``reach`` with the push fan's discs appended (see :func:`_sweep`):
-    at the reference's flat output, which the pushed catches' S hold."""
+    """``offsets`` and ``reach`` with the push fan's discs appended (see :func:`_sweep`),
+    at the reference's flat output, which the pushed catches' S hold.
+
+    The walk along the reference's fast ticks (every :data:`_FAN_STRIDE` ticks) checks
+    a state, then the next one whose catches differ or whose discs may have moved more
+    than :data:`FAN_GAP` from the checked one's (the flat output's displacement plus
+    :meth:`PushFan.turn`); every disc is grown by :data:`FAN_GAP` and by the most the
+    discs move within a stride, so the states between checked ones are covered too.
+    """
     ref = prim.position[:, :2] - prim.position[0, :2] + fan.flat_length * prim.states[:, 2:4]
     vel = prim.position[:, 2:4] + fan.flat_length * prim.states[:, 6:8]
-    fast = sel[np.hypot(vel[sel, 0], vel[sel, 1]) > fan.above + 1e-9]
-    picked: list[int] = []
-    for k in fast:
-        if not picked or (k - picked[-1]) * prim.dt >= FAN_PERIOD - 1e-9:
-            picked.append(int(k))
-    if fast.size and picked[-1] != int(fast[-1]):
-        picked.append(int(fast[-1]))
+    fast = np.flatnonzero(np.hypot(vel[:, 0], vel[:, 1]) > fan.above + 1e-9)
+    if fast.size == 0:
+        return offsets, reach
+    ticks = fast[::_FAN_STRIDE]
+    members = fan.members(vel[ticks])
+    if members is None:
+        return offsets, np.full(reach.shape, np.inf)
+    # Within a stride (and across a gap in the fast ticks, which only shortens it) the
+    # discs move by at most the flat output's path plus the turn of its velocity.
+    span = min(_FAN_STRIDE, int(fast[-1] - fast[0]) + 1)
+    step_move = float(
+        np.max(np.hypot(*np.diff(ref[fast[0] : fast[-1] + 1], axis=0).T), initial=0.0)
+    )
+    step_dv = float(np.max(np.hypot(*np.diff(vel[fast[0] : fast[-1] + 1], axis=0).T), initial=0.0))
+    grow = FAN_GAP + span * step_move + fan.turn(np.unique(members), span * step_dv)
+    picked = [0]
+    for i in range(1, ticks.size):
+        p = picked[-1]
+        moved = float(np.hypot(*(ref[ticks[i]] - ref[ticks[p]])))
+        dv = float(np.hypot(*(vel[ticks[i]] - vel[ticks[p]])))
+        if np.any(members[i] != members[p]) or moved + fan.turn(members[p], dv) > FAN_GAP:
+            picked.append(i)
     more_o, more_r = [offsets], [reach]
-    for k in picked:
-        got = fan.samples(ref[k], vel[k])
-        if got is None:
-            return offsets, np.full(reach.shape, np.inf)
+    for i in picked:
+        got = fan.samples(ref[ticks[i]], vel[ticks[i]])
+        assert got is not None  # its members were found above
         more_o.append(got[0])
-        more_r.append(got[1])
+        more_r.append(got[1] + grow)
     return np.concatenate(more_o), np.concatenate(more_r)
 
 
