@@ -24,12 +24,16 @@ median of time / T* with L the straight distance (a lower bound on the path, so 
 stays a bound). ``--design-push J`` sets ``planner.design_push`` (N s) on both
 measurements: the library then keeps room, where it moves faster than 0.8 m/s
 (``gracenav.library.sweeps.FAN_FLOOR``), for the catches of a push of J (with the
-pairs, the campaign's draws are then checked against that library). Progress goes to
-stderr, the tables to stdout.
+pairs, the campaign's draws are then checked against that library). ``--breakdown``
+also prints, per pair, where gracenav's time goes (the start: capture regulators,
+catches, shifts and rest trims before the first lattice maneuver that moves; the
+lattice's maneuvers; the end after the last one), its path against the baseline's, and
+where each planner's largest jerk lies, with the medians over the pairs. Progress goes
+to stderr, the tables to stdout.
 
     OPENBLAS_NUM_THREADS=1 nice -n 5 .venv/bin/python bench/bench_speed.py
         [--trials 20] [--seed N] [--only long|pairs] [--lean-limit-deg 5]
-        [--design-push 0]
+        [--design-push 0] [--breakdown]
 """
 
 from __future__ import annotations
@@ -179,11 +183,94 @@ def bench_long(palette: Any, lean_limit: float, seed: int, design_push: float = 
     _print_table(rows, _lean_limits(palette))
 
 
+def _phases(result: Any) -> dict[str, Any]:
+    """Where a gracenav run's time and largest jerk lie (:func:`bench_pairs`'s
+    ``--breakdown``): the start before the first lattice maneuver that moves, the
+    maneuvers, the end after the last one."""
+    from gracenav.execution import CAPTURE, TERMINAL
+    from gracenav.execution.smoothness import jerk_profile
+    from gracenav.policies import PrimitiveKind
+
+    ep, lib = result.episodes[0], result.library
+    end_time = float(result.runs[0].time_s)
+
+    def moving(row: int) -> bool:
+        if row < 0:
+            return False
+        pol = lib.policy(row).policy
+        return not pol.capture and pol.primitive.kind is not PrimitiveKind.REST
+
+    def what(row: int) -> str:
+        if row == CAPTURE:
+            return "capture"
+        if row == TERMINAL:
+            return "terminal"
+        if row < 0:
+            return "balancing"
+        pol = lib.policy(row).policy
+        if pol.capture:
+            return "regulator"
+        return pol.primitive.kind.value
+
+    events = ep.events
+    moves = [k for k, e in enumerate(events) if moving(e.to_policy)]
+    if not moves:
+        start = end = end_time
+    else:
+        start = events[moves[0]].time
+        last = moves[-1]
+        end = events[last + 1].time if last + 1 < len(events) else end_time
+    ps = ep.position_state
+    jp = jerk_profile(ep.time, ps[:, 2:4])
+    k = int(np.argmax(jp.jerk)) if jp.jerk.size else 0
+    tj = float(jp.time[k]) if jp.jerk.size else math.nan
+    row = int(ep.policy[min(int(np.searchsorted(ep.time, tj)), len(ep.policy) - 1)])
+    where = "start" if tj < start else ("end" if tj >= end else "maneuvers")
+    return {
+        "start_s": start,
+        "maneuvers_s": end - start,
+        "end_s": end_time - end,
+        "jerk_at": f"{where} ({what(row)})",
+    }
+
+
+def _print_breakdown(rows: list[tuple[dict[str, Any], dict[str, Any], dict[str, Any]]]) -> None:
+    print(
+        "  pair  dist (m)  gracenav: start  maneuvers  end  time (s)  path (m)  max jerk at"
+        "                 | decoupled: time (s)  path (m)  max jerk"
+    )
+    for i, (g, phase, d) in enumerate(rows):
+        dist = math.hypot(g["goal_x"] - g["start_x"], g["goal_y"] - g["start_y"])
+        print(
+            f"  {i:4d}  {dist:8.2f}  {phase['start_s']:15.2f}  {phase['maneuvers_s']:9.2f}  "
+            f"{phase['end_s']:4.2f}  {g['time_s']:8.2f}  {g['path_length_m']:8.2f}  "
+            f"{g['max_jerk_mps3']:6.2f} {phase['jerk_at']:<20} | {d['time_s']:19.2f}  "
+            f"{d['path_length_m']:8.2f}  {d['max_jerk_mps3']:8.2f}"
+        )
+    jerk_where: dict[str, int] = {}
+    for _, phase, _ in rows:
+        key = phase["jerk_at"].split(" ")[0]
+        jerk_where[key] = jerk_where.get(key, 0) + 1
+    print(
+        f"  medians: start {_median([p['start_s'] for _, p, _ in rows]):.2f} s, maneuvers "
+        f"{_median([p['maneuvers_s'] for _, p, _ in rows]):.2f} s, end "
+        f"{_median([p['end_s'] for _, p, _ in rows]):.2f} s; path gracenav / decoupled "
+        f"{_median([g['path_length_m'] / d['path_length_m'] for g, _, d in rows]):.2f}; "
+        "gracenav's largest jerk in the "
+        + ", ".join(f"{k} {v}" for k, v in sorted(jerk_where.items()))
+    )
+
+
 def bench_pairs(
-    palette: Any, trials: int, seed: int | None, lean_limit: float, design_push: float = 0.0
+    palette: Any,
+    trials: int,
+    seed: int | None,
+    lean_limit: float,
+    design_push: float = 0.0,
+    breakdown: bool = False,
 ) -> None:
     from gracenav.campaign import load_campaign
-    from gracenav.campaign.runner import run_trial
+    from gracenav.campaign.runner import trial_result
     from gracenav.model import physical_time_bound
 
     campaign = load_campaign(PAIRS)
@@ -194,15 +281,21 @@ def bench_pairs(
         doc["planner"] = {**(doc.get("planner") or {}), "design_push": design_push}
         campaign = dataclasses.replace(campaign, scenario=doc)
     by_planner: dict[str, list[dict[str, Any]]] = {p: [] for p in PLANNERS}
+    phases: list[tuple[dict[str, Any], dict[str, Any], dict[str, Any]]] = []
     t0 = time.perf_counter()
     for i in range(trials):
+        phase = None
         for planner in PLANNERS:
-            row = run_trial(campaign, i, planner)
+            row, result = trial_result(campaign, i, planner)
+            if breakdown and planner == "gracenav" and result is not None and row["reached_goal"]:
+                phase = _phases(result)
             if "start_x" in row:
                 length = math.hypot(row["goal_x"] - row["start_x"], row["goal_y"] - row["start_y"])
                 bound = physical_time_bound(palette.params, length, lean_limit=lean_limit)
                 row["bound_s"] = bound.bound
             by_planner[planner].append(row)
+        if phase is not None and by_planner["decoupled"][-1].get("reached_goal"):
+            phases.append((by_planner["gracenav"][-1], phase, by_planner["decoupled"][-1]))
         print(
             f"pairs: trial {i + 1}/{trials} ({time.perf_counter() - t0:.0f} s)",
             file=sys.stderr,
@@ -215,6 +308,9 @@ def bench_pairs(
         f"a_max at {math.degrees(lean_limit):.2f}°"
     )
     _print_table(rows, _lean_limits(palette))
+    if breakdown:
+        print("  where the time goes (pairs both planners reached):")
+        _print_breakdown(phases)
 
 
 def _lean_limits(palette: Any) -> tuple[float, float]:
@@ -246,6 +342,11 @@ def main() -> None:
         default=0.0,
         help="planner.design_push (N s) of both measurements (default 0: none)",
     )
+    ap.add_argument(
+        "--breakdown",
+        action="store_true",
+        help="pairs: also where gracenav's time and largest jerk lie, pair by pair",
+    )
     args = ap.parse_args()
     palette = load_palette()
     lean = (
@@ -256,7 +357,7 @@ def main() -> None:
     if args.only in (None, "long"):
         bench_long(palette, lean, args.seed if args.seed is not None else 0, args.design_push)
     if args.only in (None, "pairs"):
-        bench_pairs(palette, args.trials, args.seed, lean, args.design_push)
+        bench_pairs(palette, args.trials, args.seed, lean, args.design_push, args.breakdown)
 
 
 if __name__ == "__main__":

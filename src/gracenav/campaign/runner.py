@@ -16,7 +16,7 @@ from gracenav.campaign.draw import PairCheck, draw_trial, trial_scenario
 from gracenav.campaign.spec import Campaign
 from gracenav.errors import ConfigError, OutputError
 
-__all__ = ["CLUSTER_TIMEOUT_S", "run_campaign", "run_trial"]
+__all__ = ["CLUSTER_TIMEOUT_S", "run_campaign", "run_trial", "trial_result"]
 
 _LOG = "trials.jsonl"
 _META = "campaign.json"
@@ -100,6 +100,15 @@ def run_trial(campaign: Campaign, index: int, planner: str, params: Any = None) 
     """Run trial ``index`` with ``planner`` and return its result row; ``params`` is the
     simulated robot (:class:`gracenav.BallbotParams`, default the palette's), which the
     trial's plant factors scale."""
+    return trial_result(campaign, index, planner, params)[0]
+
+
+def trial_result(
+    campaign: Campaign, index: int, planner: str, params: Any = None
+) -> tuple[dict[str, Any], Any]:
+    """Run trial ``index`` with ``planner``: its result row (:func:`run_trial`) and the
+    :class:`gracenav.scenarios.ScenarioResult` (None when no plan was found), for
+    measurements that need the run itself (its episode, its library)."""
     from gracenav.errors import PlanningError
     from gracenav.execution import EventReason
     from gracenav.scenarios import parse_scenario, run_scenario
@@ -119,13 +128,13 @@ def run_trial(campaign: Campaign, index: int, planner: str, params: Any = None) 
     except PlanningError:
         # No verified way (or no geometric path) from this start to this goal.
         row.update(reached_goal=False, outcome="no_plan")
-        return row
+        return row, None
     run = result.runs[0].to_dict()
     for key in _MEASURES:
         row[key] = run[key]
     ep = result.episodes[0]
     row["fallbacks"] = sum(1 for e in ep.events if e.reason == EventReason.BALANCING)
-    return row
+    return row, result
 
 
 def _read_log(path: Path) -> dict[tuple[str, int], dict[str, Any]]:
