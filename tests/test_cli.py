@@ -38,6 +38,7 @@ def test_simulate_balance_writes_csv_and_png(tmp_path, capsys) -> None:
         ["palette", "build", "--cruise-speeds", "1.7", "--out", "x.npz"],
         ["palette", "build", "--cruise-speeds", "1e9", "--out", "x.npz"],
         ["palette", "build", "--cruise-speeds", "inf", "--out", "x.npz"],
+        ["palette", "build", "--shift-max-ball-jerk", "0", "--out", "x.npz"],
         ["frobnicate"],
     ],
 )

@@ -79,6 +79,16 @@ def register(sub: Any) -> None:
         default=6.0,
         help="largest ball jerk of a limited reference (m/s³, default 6)",
     )
+    b.add_argument(
+        "--shift-max-ball-jerk",
+        type=float,
+        default=None,
+        metavar="J",
+        help=(
+            "largest ball jerk of the capture's shifts (m/s³): they last as long as their "
+            "nonic needs to stay within it (default: no bound, the shortest feasible nonic)"
+        ),
+    )
     b.set_defaults(func=run_build)
     v = s.add_parser(
         "verify",
@@ -180,6 +190,7 @@ def run_build(args: argparse.Namespace) -> int:
         max_speed=max_speed,
         reference=args.reference,
         max_ball_jerk=args.max_ball_jerk,
+        shift_max_ball_jerk=args.shift_max_ball_jerk,
     )
     pal = build_palette_for(
         params=params,

@@ -55,6 +55,9 @@ class PaletteLimits:
         The maneuvers' references (:attr:`PrimitiveSetOptions.reference`).
     max_ball_jerk : float
         Largest ball jerk a limited reference plans (m/s³).
+    shift_max_ball_jerk : float or None
+        Largest ball jerk of the shifts' references (m/s³;
+        :attr:`CatchOptions.shift_max_ball_jerk`); None: the shortest feasible nonic.
     verified_lean : float
         Lean within which every run of a verification must stay (rad), 8°.
     catch_speeds : tuple of float
@@ -67,6 +70,7 @@ class PaletteLimits:
     max_speed: float = 0.8
     reference: Literal["nonic", "limited"] = "nonic"
     max_ball_jerk: float = 6.0
+    shift_max_ball_jerk: float | None = None
     verified_lean: float = math.radians(8.0)
     catch_speeds: tuple[float, ...] = CatchOptions().speeds
 
@@ -86,6 +90,7 @@ class PaletteLimits:
         object.__setattr__(self, "cruise_speeds", speeds)
         object.__setattr__(self, "catch_speeds", tuple(float(v) for v in self.catch_speeds))
         self.primitive_options()  # the speeds' checks
+        self.verification_options()  # the catches' checks
 
     def primitive_options(self) -> PrimitiveSetOptions:
         """The primitive set's options these limits give (its other options default)."""
@@ -103,7 +108,12 @@ class PaletteLimits:
         base = VerificationOptions()
         catch = base.catch
         if catch is not None:
-            catch = dataclasses.replace(catch, max_lean=self.max_lean, speeds=self.catch_speeds)
+            catch = dataclasses.replace(
+                catch,
+                max_lean=self.max_lean,
+                speeds=self.catch_speeds,
+                shift_max_ball_jerk=self.shift_max_ball_jerk,
+            )
         return dataclasses.replace(base, lean_limit=self.verified_lean, catch=catch)
 
     @classmethod
@@ -117,6 +127,7 @@ class PaletteLimits:
             max_speed=prim.max_speed,
             reference=prim.reference,
             max_ball_jerk=prim.max_ball_jerk,
+            shift_max_ball_jerk=catch.shift_max_ball_jerk if catch is not None else None,
             verified_lean=palette.options.lean_limit,
             catch_speeds=catch.speeds if catch is not None else (),
         )
@@ -127,6 +138,8 @@ class PaletteLimits:
         speeds = ", ".join(f"{v:g}" for v in self.cruise_speeds)
         top = max(self.catch_speeds, default=0.0)
         jerk = f" and {self.max_ball_jerk:g} m/s³" if self.reference == "limited" else ""
+        if self.shift_max_ball_jerk is not None:
+            jerk += f"; shifts at most {self.shift_max_ball_jerk:g} m/s³"
         return (
             f"limits: lean {math.degrees(self.max_lean):g}° planned, "
             f"{math.degrees(self.verified_lean):g}° verified; torque {torque_limit:g} N m; "

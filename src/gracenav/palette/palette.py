@@ -75,13 +75,23 @@ def palette_key(
             "algorithm": ALGORITHM_VERSION,
             "params": params.to_dict(),
             "controller": gains.design_inputs(),
-            "options": dataclasses.asdict(options),
+            "options": _options_key(options),
             "primitives": primitive_options.to_dict(),
             "d": float(d),
         },
         sort_keys=True,
     )
     return hashlib.sha256(blob.encode()).hexdigest()
+
+
+def _options_key(options: VerificationOptions) -> dict[str, Any]:
+    """The verification options as hashed: an option added later is left out at the
+    value that reproduces the palettes built before it (their keys stay valid)."""
+    data = dataclasses.asdict(options)
+    catch = data.get("catch")
+    if catch is not None and catch.get("shift_max_ball_jerk") is None:
+        del catch["shift_max_ball_jerk"]
+    return data
 
 
 @dataclass(frozen=True)

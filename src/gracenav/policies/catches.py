@@ -84,6 +84,7 @@ __all__ = [
     "SETTLED",
     "SHIFT_NAME",
     "STILL",
+    "ball_jerk",
     "band_leans",
     "catch_label",
     "catch_policies",
@@ -312,20 +313,72 @@ def shift_primitive(
     offset: ArrayLike, options: CatchOptions, gains: ControllerGains
 ) -> SampledPrimitive | None:
     """The rest-to-rest shift by ``offset`` (m) of the shortest feasible duration (at
-    least 1 s), then the rest tail."""
+    least 1 s, and long enough for ``options.shift_max_ball_jerk``), then the rest
+    tail."""
     from gracenav.primitives.shape_planner import NonicReference
 
     off = np.asarray(offset, dtype=float)
     zero = np.zeros(2)
+
+    def nonic(t: float) -> NonicReference:
+        return NonicReference.between(t, zero, zero, off, zero)
+
+    t_min = max(1.0, options.min_duration)
+    if options.shift_max_ball_jerk is not None:
+        t_min = max(t_min, _jerk_duration(nonic, options, gains))
     return _plan_to_rest(
-        lambda t: NonicReference.between(t, zero, zero, off, zero),
+        nonic,
         zero,
         options,
         gains.params.torque_limit,
         gains,
         f"{SHIFT_NAME}_{off[0]:.4g}_{off[1]:.4g}",
-        min_duration=max(1.0, options.min_duration),
+        min_duration=t_min,
     )
+
+
+#: Samples per reference of the ball jerk check (:func:`_jerk_duration`).
+_JERK_SAMPLES = 257
+
+
+def ball_jerk(reference: PositionReference, params: BallbotParams) -> float:
+    """Largest ball jerk (m/s³) of a flat-output reference on the linearised model,
+    x⃛ = y⃛ − (L/κ) y⁽⁵⁾ on each axis (the ball moves against the lean), on
+    :data:`_JERK_SAMPLES` samples."""
+    from gracenav.primitives.references import flat_output_gain, flat_output_lengths
+
+    t = np.linspace(0.0, reference.duration, _JERK_SAMPLES)
+    lag = flat_output_lengths(params) / flat_output_gain(params)
+    jerk = reference.value(t, 3) - lag * reference.value(t, 5)
+    return float(np.max(np.hypot(jerk[:, 0], jerk[:, 1])))
+
+
+def _jerk_duration(
+    reference_of: Callable[[float], PositionReference],
+    options: CatchOptions,
+    gains: ControllerGains,
+) -> float:
+    """The shortest duration on the planning grid whose reference keeps the ball jerk
+    within ``options.shift_max_ball_jerk``: bisection between 1/128 s and a duration
+    that does (the nonic's jerk falls with its duration as T⁻³ and T⁻⁵)."""
+    bound = options.shift_max_ball_jerk
+    assert bound is not None
+    params = gains.params
+    hi = 1.0
+    while ball_jerk(reference_of(hi), params) > bound:
+        hi *= 2.0
+        if hi > options.max_duration:
+            return hi  # beyond every feasible duration: the shift cannot be planned
+    lo = 0.0
+    while hi - lo > _DURATION_STEP + 1e-12:
+        mid = math.ceil((lo + hi) / 2 / _DURATION_STEP - 1e-9) * _DURATION_STEP
+        if mid >= hi:
+            break
+        if ball_jerk(reference_of(mid), params) > bound:
+            lo = mid
+        else:
+            hi = mid
+    return hi
 
 
 def shift_cells(options: CatchOptions, d: float) -> list[tuple[int, int]]:

@@ -275,6 +275,13 @@ class CatchOptions:
         Least D' position (m) and velocity (m/s) extents of a shift (round), verified
         from the plan lean and the settled band; D' is also at least 1.1 and 3 times S's
         (0.11 m at ``shift_scale`` 1.25).
+    shift_max_ball_jerk : float or None
+        Largest ball jerk (m/s³) of a shift's reference on the linearised model (the
+        ball moves against the lean: x⃛ = y⃛ − (L/κ) y⁽⁵⁾): the shift lasts at least
+        as long as its nonic needs to stay within it (6 m/s³, the limited maneuvers'
+        default bound, makes a 3 cm shift last 1.56 s). None (default, and every
+        palette built before the option): no bound, the shortest feasible nonic, whose
+        ball jerk reaches 55 m/s³ for a 3 cm shift in its least 1 s.
     still_speeds : tuple of float
         Speeds (m/s) of the catches of the *still* class: verified from a small S
         (``still_scale``) with the lean within ``still_lean`` of the plan's, so that
@@ -327,6 +334,7 @@ class CatchOptions:
     shift_radius: float = 0.375
     shift_scale: float = 1.25
     shift_outer: tuple[float, float] = (0.10, 0.5)
+    shift_max_ball_jerk: float | None = None
     still_speeds: tuple[float, ...] = (
         0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5, 0.55, 0.6,
     )  # fmt: skip
@@ -389,6 +397,10 @@ class CatchOptions:
                 )
         if not self.shift_scale >= 1:
             raise ConfigError(f"shift_scale must be >= 1 (S ⊇ G), got {self.shift_scale}")
+        if self.shift_max_ball_jerk is not None and not self.shift_max_ball_jerk > 0:
+            raise ConfigError(
+                f"shift_max_ball_jerk must be > 0 m/s³ or None, got {self.shift_max_ball_jerk}"
+            )
         if any(v < 0 for v in self.still_speeds):
             raise ConfigError(f"catch still_speeds must be >= 0, got {self.still_speeds}")
         if not 0 < self.still_scale <= 1 or not self.still_shift_scale >= self.still_scale:
@@ -405,7 +417,10 @@ class CatchOptions:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> CatchOptions:
-        """Inverse of :func:`dataclasses.asdict` (lists become tuples)."""
+        """Inverse of :func:`dataclasses.asdict` (lists become tuples). A palette
+        written before ``shift_max_ball_jerk`` existed planned its shifts without a
+        bound: None."""
+        data = {"shift_max_ball_jerk": None, **data}
         return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in data.items()})  # type: ignore[arg-type]
 
 
