@@ -39,6 +39,7 @@ def test_simulate_balance_writes_csv_and_png(tmp_path, capsys) -> None:
         ["palette", "build", "--cruise-speeds", "1e9", "--out", "x.npz"],
         ["palette", "build", "--cruise-speeds", "inf", "--out", "x.npz"],
         ["palette", "build", "--shift-max-ball-jerk", "0", "--out", "x.npz"],
+        ["palette", "build", "--shift-max-ball-jerk", "abc", "--out", "x.npz"],
         ["frobnicate"],
     ],
 )

@@ -49,9 +49,10 @@ def test_ball_jerk_is_the_third_derivative_of_the_linearised_ball() -> None:
 def test_shift_is_the_shortest_within_the_jerk_bound(palette, offset) -> None:
     """The shift's nonic keeps the bound, one planning step (1/128 s) shorter would
     not, and the 3D model tracking the shift from its plan start jerks the ball within
-    15 % of it (the feedback adds a little)."""
-    bound = 6.0
-    opts = CatchOptions(shift_max_ball_jerk=bound)
+    15 % of it (the feedback adds a little). The default bound, 12 m/s³."""
+    opts = CatchOptions()
+    bound = opts.shift_max_ball_jerk
+    assert bound == 12.0
     gains = palette.gains
 
     def nonic(t: float) -> NonicReference:
@@ -72,18 +73,19 @@ def test_shift_is_the_shortest_within_the_jerk_bound(palette, offset) -> None:
 
 
 def test_without_the_bound_small_shifts_jerk_far_more(palette) -> None:
-    """Without the bound (the default, and palettes built before it) a 3 cm shift takes
-    the 1 s floor and jerks the ball at about 55 m/s³; with 6 m/s³ it lasts longer. A
-    palette file written before the option reads as no bound and keeps its key."""
+    """Without the bound (palettes built before it) a 3 cm shift takes the 1 s floor
+    and jerks the ball at about 55 m/s³; with 12 m/s³ it lasts 1.36 s, with 6 m/s³
+    1.56 s. A palette file written before the option reads as no bound."""
     gains = palette.gains
-    free = shift_primitive((0.03125, 0.0), CatchOptions(), gains)
-    bounded = shift_primitive((0.03125, 0.0), CatchOptions(shift_max_ball_jerk=6.0), gains)
-    assert free is not None and bounded is not None
-    assert CatchOptions().shift_max_ball_jerk is None
+    free = shift_primitive((0.03125, 0.0), CatchOptions(shift_max_ball_jerk=None), gains)
+    bounded = shift_primitive((0.03125, 0.0), CatchOptions(), gains)
+    tighter = shift_primitive((0.03125, 0.0), CatchOptions(shift_max_ball_jerk=6.0), gains)
+    assert free is not None and bounded is not None and tighter is not None
     tail = CatchOptions().tail
     assert free.duration - tail == pytest.approx(1.0)
     assert ball_jerk(_nonic(1.0, (0.03125, 0.0)), PARAMS) > 50.0
-    assert bounded.duration > free.duration
+    assert bounded.duration - tail == pytest.approx(1.359375)
+    assert tighter.duration - tail == pytest.approx(1.5625)
     assert CatchOptions.from_dict({}).shift_max_ball_jerk is None
     with pytest.raises(ConfigError, match="shift_max_ball_jerk"):
         CatchOptions(shift_max_ball_jerk=0.0)
@@ -91,22 +93,28 @@ def test_without_the_bound_small_shifts_jerk_far_more(palette) -> None:
 
 def test_the_bound_is_a_palette_limit_and_changes_the_key(palette) -> None:
     """Stated once in :class:`PaletteLimits` (``palette build --shift-max-ball-jerk``):
-    it reaches the catches' options, is read back from a palette, and a bound changes
-    the palette key while no bound keeps the key of the shipped palette (built before
-    the option)."""
+    it reaches the catches' options, is read back from the shipped palette, changes the
+    palette key, and no bound hashes as the options did before the option existed (the
+    keys of palettes built then stay valid)."""
     import dataclasses
 
     from gracenav.palette import PaletteLimits, palette_key
+    from gracenav.palette.palette import _options_key
 
     limits = PaletteLimits(shift_max_ball_jerk=6.0)
     opts = limits.verification_options()
     assert opts.catch is not None and opts.catch.shift_max_ball_jerk == 6.0
     assert "shifts at most 6 m/s³" in limits.describe(60.0)
-    assert PaletteLimits.of(palette).shift_max_ball_jerk is None
+    assert PaletteLimits.of(palette).shift_max_ball_jerk == 12.0
+    assert PaletteLimits().verification_options() == palette.options
     same = palette_key(palette.params, palette.gains, palette.options, palette.d)
     assert same == palette.key
-    bounded = dataclasses.replace(
-        palette.options,
-        catch=dataclasses.replace(palette.options.catch, shift_max_ball_jerk=6.0),
+    catch = palette.options.catch
+    assert catch is not None
+    free = dataclasses.replace(
+        palette.options, catch=dataclasses.replace(catch, shift_max_ball_jerk=None)
     )
-    assert palette_key(palette.params, palette.gains, bounded, palette.d) != palette.key
+    assert palette_key(palette.params, palette.gains, free, palette.d) != palette.key
+    before = dataclasses.asdict(free)
+    del before["catch"]["shift_max_ball_jerk"]
+    assert _options_key(free) == before

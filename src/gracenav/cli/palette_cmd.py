@@ -14,6 +14,16 @@ from gracenav.cli._common import add_params_argument, load_params
 __all__ = ["register"]
 
 
+def _bound_or_none(text: str) -> float | None:
+    """A bound (float) from the command line, or None for ``none``."""
+    if text.strip().lower() == "none":
+        return None
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected m/s³ or 'none', got {text!r}") from None
+
+
 def register(sub: Any) -> None:
     """Add the ``palette`` command group."""
     p = sub.add_parser(
@@ -81,12 +91,13 @@ def register(sub: Any) -> None:
     )
     b.add_argument(
         "--shift-max-ball-jerk",
-        type=float,
-        default=None,
+        type=_bound_or_none,
+        default=12.0,
         metavar="J",
         help=(
-            "largest ball jerk of the capture's shifts (m/s³): they last as long as their "
-            "nonic needs to stay within it (default: no bound, the shortest feasible nonic)"
+            "largest ball jerk of the capture's shifts (m/s³, default 12): they last as "
+            "long as their nonic needs to stay within it; 'none': the shortest feasible "
+            "nonic"
         ),
     )
     b.set_defaults(func=run_build)

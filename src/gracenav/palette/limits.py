@@ -56,7 +56,7 @@ class PaletteLimits:
     max_ball_jerk : float
         Largest ball jerk a limited reference plans (m/s³).
     shift_max_ball_jerk : float or None
-        Largest ball jerk of the shifts' references (m/s³;
+        Largest ball jerk of the shifts' references (m/s³, 12;
         :attr:`CatchOptions.shift_max_ball_jerk`); None: the shortest feasible nonic.
     verified_lean : float
         Lean within which every run of a verification must stay (rad), 8°.
@@ -70,7 +70,7 @@ class PaletteLimits:
     max_speed: float = 0.8
     reference: Literal["nonic", "limited"] = "nonic"
     max_ball_jerk: float = 6.0
-    shift_max_ball_jerk: float | None = None
+    shift_max_ball_jerk: float | None = 12.0
     verified_lean: float = math.radians(8.0)
     catch_speeds: tuple[float, ...] = CatchOptions().speeds
 

@@ -278,10 +278,11 @@ class CatchOptions:
     shift_max_ball_jerk : float or None
         Largest ball jerk (m/s³) of a shift's reference on the linearised model (the
         ball moves against the lean: x⃛ = y⃛ − (L/κ) y⁽⁵⁾): the shift lasts at least
-        as long as its nonic needs to stay within it (6 m/s³, the limited maneuvers'
-        default bound, makes a 3 cm shift last 1.56 s). None (default, and every
-        palette built before the option): no bound, the shortest feasible nonic, whose
-        ball jerk reaches 55 m/s³ for a 3 cm shift in its least 1 s.
+        as long as its nonic needs to stay within it: 12 m/s³ by default, about the
+        largest the maneuvers' own ball jerk reaches on a run, makes a 3 cm shift last
+        1.36 s. None (every palette built before the option): no bound, the shortest
+        feasible nonic, whose ball jerk reaches 55 m/s³ for a 3 cm shift in its least
+        1 s.
     still_speeds : tuple of float
         Speeds (m/s) of the catches of the *still* class: verified from a small S
         (``still_scale``) with the lean within ``still_lean`` of the plan's, so that
@@ -334,7 +335,7 @@ class CatchOptions:
     shift_radius: float = 0.375
     shift_scale: float = 1.25
     shift_outer: tuple[float, float] = (0.10, 0.5)
-    shift_max_ball_jerk: float | None = None
+    shift_max_ball_jerk: float | None = 12.0
     still_speeds: tuple[float, ...] = (
         0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5, 0.55, 0.6,
     )  # fmt: skip
