@@ -28,7 +28,7 @@ pairs, the campaign's draws are then checked against that library). ``--breakdow
 also prints, per pair, where gracenav's time goes (the start: capture regulators,
 catches, shifts and rest trims before the first lattice maneuver that moves; the
 lattice's maneuvers; the end after the last one), its path against the baseline's, and
-where each planner's largest jerk lies, with the medians over the pairs. Progress goes
+where gracenav's largest jerk lies, with the medians over the pairs. Progress goes
 to stderr, the tables to stdout.
 
     OPENBLAS_NUM_THREADS=1 nice -n 5 .venv/bin/python bench/bench_speed.py

@@ -85,12 +85,15 @@ def palette_key(
 
 
 def _options_key(options: VerificationOptions) -> dict[str, Any]:
-    """The verification options as hashed: an option added later is left out at the
-    value that reproduces the palettes built before it (their keys stay valid)."""
+    """The verification options as hashed: a catch option added later
+    (:attr:`CatchOptions.ADDED_LATER`) is left out at the value that reproduces the
+    palettes built before it, so their keys stay valid."""
     data = dataclasses.asdict(options)
     catch = data.get("catch")
-    if catch is not None and catch.get("shift_max_ball_jerk") is None:
-        del catch["shift_max_ball_jerk"]
+    if catch is not None:
+        for name, before in CatchOptions.ADDED_LATER.items():
+            if catch.get(name, before) == before:
+                catch.pop(name, None)
     return data
 
 

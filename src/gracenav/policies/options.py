@@ -7,7 +7,7 @@ import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -278,9 +278,9 @@ class CatchOptions:
     shift_max_ball_jerk : float or None
         Largest ball jerk (m/s³) of a shift's reference on the linearised model (the
         ball moves against the lean: x⃛ = y⃛ − (L/κ) y⁽⁵⁾): the shift lasts at least
-        as long as its nonic needs to stay within it: 12 m/s³ by default, about the
-        largest the maneuvers' own ball jerk reaches on a run, makes a 3 cm shift last
-        1.36 s. None (every palette built before the option): no bound, the shortest
+        as long as its nonic needs to stay within it: 12 m/s³ by default (the
+        maneuvers' largest ball jerk on the random pairs of ``bench/bench_speed.py
+        --breakdown`` reaches 11.9 m/s³) makes a 3 cm shift last 1.36 s. None (every palette built before the option): no bound, the shortest
         feasible nonic, whose ball jerk reaches 55 m/s³ for a 3 cm shift in its least
         1 s.
     still_speeds : tuple of float
@@ -336,6 +336,10 @@ class CatchOptions:
     shift_scale: float = 1.25
     shift_outer: tuple[float, float] = (0.10, 0.5)
     shift_max_ball_jerk: float | None = 12.0
+    #: Options added after palettes were first written, each with the value that
+    #: reproduces those palettes: a stored file without one reads as that value, and
+    #: that value is left out of the palette key, so the keys of those files hold.
+    ADDED_LATER: ClassVar[dict[str, Any]] = {"shift_max_ball_jerk": None}
     still_speeds: tuple[float, ...] = (
         0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5, 0.55, 0.6,
     )  # fmt: skip
@@ -418,10 +422,9 @@ class CatchOptions:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> CatchOptions:
-        """Inverse of :func:`dataclasses.asdict` (lists become tuples). A palette
-        written before ``shift_max_ball_jerk`` existed planned its shifts without a
-        bound: None."""
-        data = {"shift_max_ball_jerk": None, **data}
+        """Inverse of :func:`dataclasses.asdict` (lists become tuples); an option of
+        :attr:`ADDED_LATER` that ``data`` lacks takes its value from there."""
+        data = {**cls.ADDED_LATER, **data}
         return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in data.items()})  # type: ignore[arg-type]
 
 
