@@ -280,9 +280,9 @@ class CatchOptions:
         ball moves against the lean: x⃛ = y⃛ − (L/κ) y⁽⁵⁾): the shift lasts at least
         as long as its nonic needs to stay within it: 12 m/s³ by default (the
         maneuvers' largest ball jerk on the random pairs of ``bench/bench_speed.py
-        --breakdown`` reaches 11.9 m/s³) makes a 3 cm shift last 1.36 s. None (every palette built before the option): no bound, the shortest
-        feasible nonic, whose ball jerk reaches 55 m/s³ for a 3 cm shift in its least
-        1 s.
+        --breakdown`` reaches 11.9 m/s³) makes a 3 cm shift last 1.36 s. None (every
+        palette built before the option): no bound, the shortest feasible nonic, whose
+        ball jerk reaches 55 m/s³ for a 3 cm shift in its least 1 s.
     still_speeds : tuple of float
         Speeds (m/s) of the catches of the *still* class: verified from a small S
         (``still_scale``) with the lean within ``still_lean`` of the plan's, so that
