@@ -24,6 +24,10 @@ median time to goal and the median wall time per task.
 
     OPENBLAS_NUM_THREADS=1 python bench/bench_maps.py [--tasks 8] [--seed 0]
         [--classes forest forest_tight warehouse office] [--max-halvings N]
+        [--design-push 0]
+
+``--design-push J`` sets ``planner.design_push`` (N s) of every task, both planners
+(the decoupled baseline ignores it); ``GRACENAV_PALETTE=FILE`` runs another palette.
 """
 
 from __future__ import annotations
@@ -97,7 +101,12 @@ def tasks(kind: str, n: int, seed: int) -> list[tuple[WorldMap, Any, Any]]:
 
 
 def run_one(
-    path: Path, start: Any, goal: Any, planner: str, max_halvings: int | None = None
+    path: Path,
+    start: Any,
+    goal: Any,
+    planner: str,
+    max_halvings: int | None = None,
+    design_push: float = 0.0,
 ) -> dict[str, Any]:
     """One task through run_scenario: outcome, time to goal, contact, wall time."""
     data: dict[str, Any] = {
@@ -114,6 +123,8 @@ def run_one(
     }
     if max_halvings is not None:
         data["planner"]["max_halvings"] = max_halvings
+    if design_push > 0.0:
+        data["planner"]["design_push"] = design_push
     if planner == "decoupled":
         data["planner"]["kind"] = "decoupled"
     t0 = time.perf_counter()
@@ -148,6 +159,12 @@ def main() -> None:
         default=None,
         help="planner.max_halvings of every task (default: the scenario default)",
     )
+    ap.add_argument(
+        "--design-push",
+        type=float,
+        default=0.0,
+        help="planner.design_push (N s) of every task (default 0: none)",
+    )
     args = ap.parse_args()
     print("class      planner     tasks  reached  refused  contacts  median_time_s  median_wall_s")
     with tempfile.TemporaryDirectory() as tmp:
@@ -161,7 +178,7 @@ def main() -> None:
             by_planner: dict[str, list[dict[str, Any]]] = {}
             for planner in ("gracenav", "decoupled"):
                 rows = by_planner[planner] = [
-                    run_one(p, s, g, planner, args.max_halvings)
+                    run_one(p, s, g, planner, args.max_halvings, args.design_push)
                     for p, (_, s, g) in zip(paths, drawn, strict=True)
                 ]
                 reached = sum(1 for r in rows if r.get("reached"))

@@ -82,6 +82,32 @@ def test_expected_size_is_the_library_size_when_every_undecided_point_is_checked
         expected_library_size(palette, office14, 0.5, samples=1)
 
 
+def test_the_bound_decides_a_budget_as_the_sample_would(palette: Any, office14: Any) -> None:
+    """With a limit, the policies' upper bound replaces the sampled check when it fits:
+    the verdict (fits or not) at every limit is the sampled estimate's, and a limit the
+    bound fits skips the sample."""
+    from gracenav.world import forest_map
+
+    for world in (office14, forest_map(density=0.012, seed=3)):
+        for h in (0, 1):
+            sampled = estimate_run_memory(world, palette, h)
+            spacing = palette.d / 2**h
+            high = expected_library_size(palette, world, spacing).high
+            assert sampled.policies is not None and sampled.policies <= high
+            roomy = estimate_run_memory(world, palette, h, limit=64 * GIB)
+            assert roomy.policies == high and roomy.bytes >= sampled.bytes
+            limits = [sampled.bytes * f for f in (0.9, 0.999, 1.0, 1.001, 1.1)]
+            limits += [roomy.bytes * f for f in (0.999, 1.0, 1.001)]
+            for limit in limits:
+                got = estimate_run_memory(world, palette, h, limit=limit)
+                assert (got.bytes <= limit) == (sampled.bytes <= limit), (h, limit)
+            # A cap on the policies below the bound asks for the sample.
+            capped = estimate_run_memory(world, palette, h, limit=64 * GIB, policy_cap=high - 1)
+            assert capped.policies == sampled.policies
+    with pytest.raises(ConfigError, match="samples"):
+        expected_library_size(palette, office14, 0.5, samples=1, sample_above=1e9)
+
+
 def test_build_library_refuses_a_pass_by_its_expected_size(palette: Any, office14: Any) -> None:
     """Between the bounds, build_library's memory check goes by the estimate (exact here:
     every undecided point is checked), not by the lower bound."""

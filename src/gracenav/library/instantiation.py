@@ -428,6 +428,7 @@ def expected_library_size(
     design_push: float = 0.0,
     samples: int = ESTIMATE_SAMPLES,
     seed: int = 0,
+    sample_above: float | None = None,
 ) -> LibrarySizeEstimate:
     """Estimate the number of policies one pass at ``spacing`` would keep, without
     instantiating the pass.
@@ -455,6 +456,12 @@ def expected_library_size(
         Undecided points to check, >= 2.
     seed : int
         Seed of the sample.
+    sample_above : float, optional
+        Check the undecided points only when the upper bound (``high``) exceeds this
+        many policies; at or below it the estimate is that bound (``expected`` =
+        ``high``, nothing sampled). For a caller that only asks whether the library
+        stays within a size: the bounds cost the clearance at the lattice points, the
+        check the swept samples (most of a small map's instantiation time).
 
     Returns
     -------
@@ -482,6 +489,16 @@ def expected_library_size(
     high = per_point(tables["sample_first_reach"])
     undecided = np.flatnonzero(low < high)
     u = int(undecided.size)
+    if sample_above is not None and float(high.sum()) <= sample_above:
+        return LibrarySizeEstimate(
+            low=int(low.sum()),
+            high=int(high.sum()),
+            expected=float(high.sum()),
+            std_error=0.0,
+            points=int(points.shape[0]),
+            undecided=u,
+            sampled=0,
+        )
     if u > samples:
         rng = np.random.default_rng(seed)
         sample = np.sort(rng.choice(undecided, samples, replace=False))

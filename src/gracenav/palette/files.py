@@ -98,8 +98,30 @@ def _mismatch(
     return None
 
 
+#: Palettes read in this process, by file (resolved path, modification time in ns and
+#: size), the most recently read last: a process that runs many scenarios reads its
+#: palette once, and instantiation's tables, kept per palette object, are computed once.
+_READ: dict[tuple[str, int, int], Palette] = {}
+
+#: Most palettes :data:`_READ` holds.
+_READ_KEEP = 4
+
+
+def _file_key(path: Path) -> tuple[str, int, int] | None:
+    """(resolved path, mtime in ns, size) of ``path``, or None when it cannot be read."""
+    try:
+        st = path.stat()
+        return (str(path.resolve()), st.st_mtime_ns, st.st_size)
+    except OSError:
+        return None
+
+
 def _read_palette(path: Path) -> Palette:
-    """Read ``path`` and check its key against the inputs stored in it."""
+    """Read ``path`` and check its key against the inputs stored in it; a file read
+    before and not changed since is not read again."""
+    before = _file_key(path)
+    if before is not None and before in _READ:
+        return _READ[before]
     try:
         data = path.read_bytes()
     except OSError as exc:
@@ -113,6 +135,10 @@ def _read_palette(path: Path) -> Palette:
             f"{path}: palette key does not match the inputs stored in it (stale or edited "
             "file); rebuild it with `gracenav palette build`"
         )
+    if before is not None and _file_key(path) == before:  # not replaced while read
+        _READ[before] = pal
+        while len(_READ) > _READ_KEEP:
+            del _READ[next(iter(_READ))]
     return pal
 
 

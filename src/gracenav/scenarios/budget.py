@@ -138,13 +138,18 @@ def estimate_run_memory(
     limit: float | None = None,
     whole_map: Any = None,
     design_push: float = 0.0,
+    policy_cap: float | None = None,
 ) -> MemoryEstimate:
     """Estimate the peak resident memory (bytes) of running a scenario on ``world_map``
     whose library refines the lattice ``halvings`` times (see the module docstring).
 
     Nothing proportional to the library is allocated: the lattice is counted by
     arithmetic, and the policies are estimated from the clearance at the lattice points
-    and instantiation's check at a sample of them (about 0.1 s on a 100 m map).
+    and instantiation's check at a sample of them (about 0.1 s on a 100 m map). With a
+    ``limit``, when the policies' upper bound from the clearance alone fits it (and is
+    within ``policy_cap``), the sample is not checked and the bound is what is budgeted
+    for: the answer to "does it fit" is the one the sample would give, without its cost
+    (seconds on a small map with a design push).
 
     Parameters
     ----------
@@ -164,6 +169,9 @@ def estimate_run_memory(
         library is built on (:mod:`gracenav.scenarios.region`): its cells count too.
     design_push : float
         The library's design push (N s).
+    policy_cap : float, optional
+        With ``limit``: policies above which the sample is checked even when the bound
+        fits the limit (:func:`choose_halvings`' ``policy_cap``).
 
     Returns
     -------
@@ -186,6 +194,19 @@ def estimate_run_memory(
     )
     if limit is not None and fixed > limit:
         return MemoryEstimate(halvings, spacing, points, None, 0.0, fixed)
+    sample_above = None
+    if limit is not None:
+        # The most policies whose peak fits for sure: the peak with the stored edges
+        # capped at STORED_EDGES grows with the policies, and is never below the
+        # estimate's (beyond the cap the graph stores none).
+        room = limit - fixed
+        per_policy = RUN_POLICY_BYTES + STORED_EDGE_BYTES * STORED_EDGES_PER_POLICY
+        sample_above = max(
+            min(room / per_policy, STORED_EDGES / STORED_EDGES_PER_POLICY),
+            (room - STORED_EDGE_BYTES * STORED_EDGES) / RUN_POLICY_BYTES,
+        )
+        if policy_cap is not None:
+            sample_above = min(sample_above, float(policy_cap))
     est = expected_library_size(
         palette,
         world_map,
@@ -193,6 +214,7 @@ def estimate_run_memory(
         footprint_radius=footprint_radius,
         speed_clearance=speed_clearance,
         design_push=design_push,
+        sample_above=sample_above,
     )
     policies = est.upper()
     edges = STORED_EDGES_PER_POLICY * policies
@@ -262,6 +284,7 @@ def choose_halvings(
             limit=memory_limit,
             whole_map=whole_map,
             design_push=design_push,
+            policy_cap=policy_cap if max_halvings is None and h > 0 else None,
         )
         if est.bytes <= memory_limit:
             capped = (
