@@ -24,11 +24,11 @@ Targets: >= 99 % at margin 0.3 m and >= 90 % at margin 0.1 m on the 5 m room, th
 paper's Fig. 5 map and the cluttered 6 m room; library + graph on the paper-size
 3.5 m area <= 100 ms.
 
-``--design-push J`` builds every library with ``design_push`` J (N s; see
-gracenav.library.build_library).
+``--design-push J`` builds every library with ``design_push`` J (N s; default
+gracenav.library.DEFAULT_DESIGN_PUSH, 0: none; see gracenav.library.build_library).
 
     OPENBLAS_NUM_THREADS=1 python bench/bench_coverage.py [--halvings 1] [--samples 20000]
-        [--brute 2000] [--design-push 0]
+        [--brute 2000] [--design-push 8]
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ import numpy as np
 import yaml
 
 from gracenav.execution.capture import PlacedPolicy, capture_for
-from gracenav.library import PolicyLibrary, build_library
+from gracenav.library import DEFAULT_DESIGN_PUSH, PolicyLibrary, build_library
 from gracenav.palette import load_palette
 from gracenav.params import BallbotParams
 from gracenav.planning.graph import build_graph
@@ -147,7 +147,10 @@ def main() -> None:
     ap.add_argument("--samples", type=int, default=20_000, help="states per class")
     ap.add_argument("--brute", type=int, default=2_000, help="states checked by brute force")
     ap.add_argument(
-        "--design-push", type=float, default=0.0, help="libraries' design push (N s, default 0)"
+        "--design-push",
+        type=float,
+        default=DEFAULT_DESIGN_PUSH,
+        help=f"libraries' design push (N s, default {DEFAULT_DESIGN_PUSH:g}; 0: none)",
     )
     args = ap.parse_args()
     pal = load_palette()

@@ -24,10 +24,11 @@ median time to goal and the median wall time per task.
 
     OPENBLAS_NUM_THREADS=1 python bench/bench_maps.py [--tasks 8] [--seed 0]
         [--classes forest forest_tight warehouse office] [--max-halvings N]
-        [--design-push 0]
+        [--design-push 8]
 
-``--design-push J`` sets ``planner.design_push`` (N s) of every task, both planners
-(the decoupled baseline ignores it); ``GRACENAV_PALETTE=FILE`` runs another palette.
+``--design-push J`` sets ``planner.design_push`` (N s; default the scenario default,
+gracenav.library.DEFAULT_DESIGN_PUSH; 0: none) of every task, both planners (the
+decoupled baseline ignores it); ``GRACENAV_PALETTE=FILE`` runs another palette.
 """
 
 from __future__ import annotations
@@ -47,6 +48,7 @@ from typing import Any
 import numpy as np
 
 from gracenav.errors import GracenavError
+from gracenav.library import DEFAULT_DESIGN_PUSH
 from gracenav.scenarios import parse_scenario, run_scenario
 from gracenav.world import (
     WorldMap,
@@ -106,7 +108,7 @@ def run_one(
     goal: Any,
     planner: str,
     max_halvings: int | None = None,
-    design_push: float = 0.0,
+    design_push: float = DEFAULT_DESIGN_PUSH,
 ) -> dict[str, Any]:
     """One task through run_scenario: outcome, time to goal, contact, wall time."""
     data: dict[str, Any] = {
@@ -123,8 +125,7 @@ def run_one(
     }
     if max_halvings is not None:
         data["planner"]["max_halvings"] = max_halvings
-    if design_push > 0.0:
-        data["planner"]["design_push"] = design_push
+    data["planner"]["design_push"] = design_push
     if planner == "decoupled":
         data["planner"]["kind"] = "decoupled"
     t0 = time.perf_counter()
@@ -162,8 +163,8 @@ def main() -> None:
     ap.add_argument(
         "--design-push",
         type=float,
-        default=0.0,
-        help="planner.design_push (N s) of every task (default 0: none)",
+        default=DEFAULT_DESIGN_PUSH,
+        help=f"planner.design_push (N s) of every task (default {DEFAULT_DESIGN_PUSH:g}; 0: none)",
     )
     args = ap.parse_args()
     print("class      planner     tasks  reached  refused  contacts  median_time_s  median_wall_s")

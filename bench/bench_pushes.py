@@ -16,13 +16,14 @@ mode: the task stops there); ``--mode fallback`` resumes from it. The library ke
 the default stopping allowance (``--speed-clearance``, gracenav.library.build_library;
 0 is the paper's instantiation); ``--design-push J`` keeps room, where the robot
 moves faster than 0.8 m/s (FAN_FLOOR), for the catches of a push of J N s
-(planner.design_push). ``--plant mujoco`` runs the same robot in MuJoCo
-instead of the 3D model the policies were verified on.
+(planner.design_push; default gracenav.library.DEFAULT_DESIGN_PUSH, 0: none).
+``--plant mujoco`` runs the same robot in MuJoCo instead of the 3D model the policies
+were verified on.
 Target (paper mode): >= 99 % of >= 300 runs with pushes of 0-16 N s reach the
 goal, every recovery into a verified start domain, no contact.
 
     OPENBLAS_NUM_THREADS=1 python bench/bench_pushes.py [--runs 300] [--mode paper]
-        [--seed 0] [--speed-clearance 0.1] [--design-push 0] [--plant model3d]
+        [--seed 0] [--speed-clearance 0.1] [--design-push 8] [--plant model3d]
 """
 
 from __future__ import annotations
@@ -42,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from gracenav.execution import EventReason, ExecutionOptions, HybridController
-from gracenav.library import DEFAULT_SPEED_CLEARANCE, build_library
+from gracenav.library import DEFAULT_DESIGN_PUSH, DEFAULT_SPEED_CLEARANCE, build_library
 from gracenav.palette import load_palette
 from gracenav.planning.graph import build_graph
 from gracenav.sim import Push, state_from_position
@@ -79,7 +80,7 @@ def _init(
     resume: bool,
     speed_clearance: float = DEFAULT_SPEED_CLEARANCE,
     plant: PlantKind = "model3d",
-    design_push: float = 0.0,
+    design_push: float = DEFAULT_DESIGN_PUSH,
 ) -> None:
     global _robot, _resume, _plant
     pal = load_palette()
@@ -151,8 +152,9 @@ def main() -> None:
     ap.add_argument(
         "--design-push",
         type=float,
-        default=0.0,
-        help="push (N s) the library keeps room to catch above 0.8 m/s (default 0: none)",
+        default=DEFAULT_DESIGN_PUSH,
+        help="push (N s) the library keeps room to catch above 0.8 m/s (default "
+        f"{DEFAULT_DESIGN_PUSH:g}; 0: none)",
     )
     ap.add_argument(
         "--plant",

@@ -21,8 +21,9 @@ gracenav / decoupled, median max jerk and median p95 jerk (from the true state,
 :mod:`gracenav.execution.smoothness`), largest lean (°) against the palette's lean
 limits (its maneuvers' and the verified balancing domain's); for the pairs also the
 median of time / T* with L the straight distance (a lower bound on the path, so T*
-stays a bound). ``--design-push J`` sets ``planner.design_push`` (N s) on both
-measurements: the library then keeps room, where it moves faster than 0.8 m/s
+stays a bound). ``--design-push J`` sets ``planner.design_push`` (N s; default the
+scenario default, gracenav.library.DEFAULT_DESIGN_PUSH; 0: none) on both measurements:
+the library then keeps room, where it moves faster than 0.8 m/s
 (``gracenav.library.sweeps.FAN_FLOOR``), for the catches of a push of J (with the
 pairs, the campaign's draws are then checked against that library). ``--breakdown``
 also prints, per pair, where gracenav's time goes (the start: capture regulators,
@@ -33,7 +34,7 @@ to stderr, the tables to stdout.
 
     OPENBLAS_NUM_THREADS=1 nice -n 5 .venv/bin/python bench/bench_speed.py
         [--trials 20] [--seed N] [--only long|pairs] [--lean-limit-deg 5]
-        [--design-push 0] [--breakdown]
+        [--design-push 8] [--breakdown]
 """
 
 from __future__ import annotations
@@ -53,6 +54,7 @@ from typing import Any
 
 import numpy as np
 
+from gracenav.library import DEFAULT_DESIGN_PUSH
 from gracenav.palette import PaletteLimits, load_palette
 
 HERE = Path(__file__).resolve().parent
@@ -147,7 +149,7 @@ def _print_table(rows: list[dict[str, Any]], lean: tuple[float, float]) -> None:
     )
 
 
-def bench_long(palette: Any, lean_limit: float, seed: int, design_push: float = 0.0) -> None:
+def bench_long(palette: Any, lean_limit: float, seed: int, design_push: float) -> None:
     from gracenav.model import physical_time_bound
     from gracenav.scenarios import parse_scenario, run_scenario
 
@@ -157,8 +159,7 @@ def bench_long(palette: Any, lean_limit: float, seed: int, design_push: float = 
     for planner in PLANNERS:
         doc = building_scenario(seed)
         doc["planner"]["kind"] = planner
-        if design_push > 0.0:
-            doc["planner"]["design_push"] = design_push
+        doc["planner"]["design_push"] = design_push
         scenario = parse_scenario(doc, source="long task")
         t0 = time.perf_counter()
         print(f"long task: {planner} ...", file=sys.stderr, flush=True)
@@ -266,7 +267,7 @@ def bench_pairs(
     trials: int,
     seed: int | None,
     lean_limit: float,
-    design_push: float = 0.0,
+    design_push: float,
     breakdown: bool = False,
 ) -> None:
     from gracenav.campaign import load_campaign
@@ -276,10 +277,9 @@ def bench_pairs(
     campaign = load_campaign(PAIRS)
     if seed is not None:
         campaign = dataclasses.replace(campaign, seed=seed)
-    if design_push > 0.0:
-        doc = dict(campaign.scenario)
-        doc["planner"] = {**(doc.get("planner") or {}), "design_push": design_push}
-        campaign = dataclasses.replace(campaign, scenario=doc)
+    doc = dict(campaign.scenario)
+    doc["planner"] = {**(doc.get("planner") or {}), "design_push": design_push}
+    campaign = dataclasses.replace(campaign, scenario=doc)
     by_planner: dict[str, list[dict[str, Any]]] = {p: [] for p in PLANNERS}
     phases: list[tuple[dict[str, Any], dict[str, Any], dict[str, Any]]] = []
     t0 = time.perf_counter()
@@ -339,8 +339,9 @@ def main() -> None:
     ap.add_argument(
         "--design-push",
         type=float,
-        default=0.0,
-        help="planner.design_push (N s) of both measurements (default 0: none)",
+        default=DEFAULT_DESIGN_PUSH,
+        help="planner.design_push (N s) of both measurements (default "
+        f"{DEFAULT_DESIGN_PUSH:g}, the scenario default; 0: none)",
     )
     ap.add_argument(
         "--breakdown",

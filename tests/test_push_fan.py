@@ -10,9 +10,14 @@ import pytest
 
 from gracenav import BallbotParams, ConfigError
 from gracenav.execution.capture import capture_for
-from gracenav.library import build_library, push_fan
+from gracenav.library import DEFAULT_DESIGN_PUSH, build_library, push_fan
 from gracenav.library import sweeps as sweeps_module
-from gracenav.library.sweeps import FAN_DIRECTIONS, FAN_FLOOR, flat_speed_change
+from gracenav.library.sweeps import (
+    FAN_DIRECTIONS,
+    FAN_FLOOR,
+    fastest_flat_speed,
+    flat_speed_change,
+)
 from gracenav.policies import flat_position_state
 from gracenav.primitives.references import flat_output_lengths
 from gracenav.scenarios import parse_scenario
@@ -63,19 +68,24 @@ def _flat(prim, length: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def test_no_design_push_and_the_shipped_palette_change_nothing(palette) -> None:
     """Without a design push there is no fan; the shipped palette's references (their
-    flat output) stay at or below FAN_FLOOR, so even a design push leaves its libraries
-    as they are."""
+    flat output) stay at or below FAN_FLOOR, so even a design push (the default one
+    too) checks no fan and leaves its libraries as they are."""
     assert push_fan(palette, 0.0, 0.05) is None
     length = flat_output_lengths(palette.params)
     top = max(float(np.max(np.hypot(*_flat(p.primitive, length)[1].T))) for p in palette.policies)
     assert top <= FAN_FLOOR
+    assert fastest_flat_speed(palette) == pytest.approx(top, abs=1e-12)
+    assert push_fan(palette, 16.0, 0.05) is None
     room = load_map(BOX)
-    plain = build_library(palette, room, max_halvings=0)
+    plain = build_library(palette, room, max_halvings=0, design_push=0.0)
+    default = build_library(palette, room, max_halvings=0)
     pushed = build_library(palette, room, max_halvings=0, design_push=16.0)
     assert pushed.design_push == 16.0 and plain.design_push == 0.0
-    np.testing.assert_array_equal(plain.palette_index, pushed.palette_index)
-    np.testing.assert_array_equal(plain.start_xy, pushed.start_xy)
-    np.testing.assert_array_equal(plain.orientation, pushed.orientation)
+    assert default.design_push == DEFAULT_DESIGN_PUSH == 8.0
+    for lib in (default, pushed):
+        np.testing.assert_array_equal(plain.palette_index, lib.palette_index)
+        np.testing.assert_array_equal(plain.start_xy, lib.start_xy)
+        np.testing.assert_array_equal(plain.orientation, lib.orientation)
 
 
 def _rows(lib) -> set[tuple[int, int, float, float]]:
@@ -125,7 +135,7 @@ def test_fan_keeps_policies_where_the_catches_of_pushed_states_fit(palette, monk
     """
     monkeypatch.setattr(sweeps_module, "FAN_FLOOR", 0.3)
     room = load_map(BOX)
-    plain = build_library(palette, room, max_halvings=0)
+    plain = build_library(palette, room, max_halvings=0, design_push=0.0)
     lib = build_library(palette, room, max_halvings=0, design_push=7.5)
     kept, before = _rows(lib), _rows(plain)
     assert kept < before  # a strict subset: the fan removed policies
@@ -170,7 +180,9 @@ def test_design_push_scenario_key(palette) -> None:
         "map": {"bounds": [[0.0, 0.0], [5.0, 5.0]], "resolution": 0.05},
         "task": {"kind": "point_to_point", "goal": [4.0, 4.0, 0.0, 0.0], "starts": [[1, 1, 0, 0]]},
     }
-    plain = parse_scenario(doc, source="t")
+    default = parse_scenario(doc, source="t")
+    assert default.design_push == DEFAULT_DESIGN_PUSH
+    plain = parse_scenario({**doc, "planner": {"design_push": 0}}, source="t")
     assert plain.design_push == 0.0
     pushed = parse_scenario({**doc, "planner": {"design_push": 16}}, source="t")
     assert pushed.design_push == 16.0
@@ -188,7 +200,7 @@ def test_memory_estimate_counts_the_design_push(palette, monkeypatch) -> None:
 
     monkeypatch.setattr(sweeps_module, "FAN_FLOOR", 0.3)
     room = load_map(BOX)
-    plain = estimate_run_memory(room, palette, 0)
+    plain = estimate_run_memory(room, palette, 0, design_push=0.0)
     pushed = estimate_run_memory(room, palette, 0, design_push=7.5)
     assert pushed.policies is not None and plain.policies is not None
     assert pushed.policies < plain.policies

@@ -34,6 +34,7 @@ and coverage).
 """
 
 from gracenav.library.instantiation import (
+    DEFAULT_DESIGN_PUSH,
     DEFAULT_MEMORY_LIMIT,
     DEFAULT_SPEED_CLEARANCE,
     ESTIMATE_SAMPLES,
@@ -70,6 +71,7 @@ from gracenav.library.types import (
 
 __all__ = [
     "DEFAULT_COVERAGE_SAMPLES",
+    "DEFAULT_DESIGN_PUSH",
     "DEFAULT_MEMORY_LIMIT",
     "DEFAULT_SPEED_CLEARANCE",
     "ESTIMATE_SAMPLES",

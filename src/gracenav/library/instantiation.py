@@ -29,6 +29,7 @@ from gracenav.palette import Palette
 from gracenav.world import WorldMap
 
 __all__ = [
+    "DEFAULT_DESIGN_PUSH",
     "DEFAULT_MEMORY_LIMIT",
     "DEFAULT_SPEED_CLEARANCE",
     "ESTIMATE_SAMPLES",
@@ -80,6 +81,16 @@ _CHOOSE_CELLS = 2**22
 
 #: Largest design push accepted (N s): twice the capture regulators' largest verified push.
 MAX_DESIGN_PUSH = 80.0
+
+#: Default design push of :func:`build_library` (N s). It acts only where a reference's
+#: flat output is faster than :data:`gracenav.library.sweeps.FAN_FLOOR` (0.8 m/s), so
+#: the shipped palette's libraries do not change. With the speed levels (`gracenav
+#: palette build --reference limited --cruise-speeds 1.0 1.2`) it catches every one of
+#: 900 seeded pushes of 0–16 N s on the 5 m room (291–295 of 300 per seed without)
+#: and keeps the 1.2 m/s level, so the 23.8 m diagonal of bench/bench_speed.py takes
+#: 25.37 s (1.48 times its physical bound) against 25.05 s without; 16 N s would
+#: leave that level out (28.52 s). docs/design/speed.md has the measurements.
+DEFAULT_DESIGN_PUSH = 8.0
 
 #: The palette's types and swept outer domain tables of one sweep step, speed clearance
 #: and design push.
@@ -331,7 +342,7 @@ def estimate_library_size(
     footprint_radius: float = 0.2,
     sweep_step: float | None = None,
     speed_clearance: float = DEFAULT_SPEED_CLEARANCE,
-    design_push: float = 0.0,
+    design_push: float = DEFAULT_DESIGN_PUSH,
 ) -> tuple[int, int]:
     """Bounds on the number of policies one pass at ``spacing`` would keep, without
     instantiating: O(P log P) in the lattice points P.
@@ -425,7 +436,7 @@ def expected_library_size(
     footprint_radius: float = 0.2,
     sweep_step: float | None = None,
     speed_clearance: float = DEFAULT_SPEED_CLEARANCE,
-    design_push: float = 0.0,
+    design_push: float = DEFAULT_DESIGN_PUSH,
     samples: int = ESTIMATE_SAMPLES,
     seed: int = 0,
     sample_above: float | None = None,
@@ -621,7 +632,7 @@ def _check_inputs(
     sweep_step: float | None,
     memory_limit: float | None,
     speed_clearance: float,
-    design_push: float = 0.0,
+    design_push: float = DEFAULT_DESIGN_PUSH,
 ) -> None:
     if not isinstance(palette, Palette):
         raise ConfigError(f"palette must be a Palette, got {type(palette).__name__}")
@@ -703,7 +714,7 @@ def build_library(
     memory_limit: float | None = DEFAULT_MEMORY_LIMIT,
     speed_clearance: float = DEFAULT_SPEED_CLEARANCE,
     anchor: ArrayLike | None = None,
-    design_push: float = 0.0,
+    design_push: float = DEFAULT_DESIGN_PUSH,
 ) -> PolicyLibrary:
     """Instantiate the palette on a map with coverage-driven lattice refinement.
 
@@ -748,7 +759,9 @@ def build_library(
         Design push (N s, 0: none): where the reference is faster than
         :data:`~gracenav.library.sweeps.FAN_FLOOR`, the catches of every state this
         push leaves must fit too (see the notes). Policies whose pushed states no
-        verified catch holds are not placed.
+        verified catch holds are not placed. Default :data:`DEFAULT_DESIGN_PUSH`; a
+        palette whose references all stay at or below the floor needs no fan, and
+        none is checked.
 
     Returns
     -------

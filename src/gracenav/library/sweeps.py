@@ -30,6 +30,7 @@ __all__ = [
     "FAN_FLOOR",
     "FAN_GAP",
     "PushFan",
+    "fastest_flat_speed",
     "flat_speed_change",
     "push_fan",
     "sweep_samples",
@@ -259,9 +260,23 @@ def flat_speed_change(params: BallbotParams, impulse: float) -> float:
     return float(flat[2])
 
 
+def fastest_flat_speed(palette: Palette) -> float:
+    """The largest speed (m/s) of the flat output along any of ``palette``'s policies'
+    references (the speed :func:`_with_fan` compares with a fan's floor)."""
+    length = flat_output_lengths(palette.params)
+    top = 0.0
+    for pol in palette.policies:
+        prim = pol.primitive
+        vel = prim.position[:, 2:4] + length * prim.states[:, 6:8]
+        top = max(top, float(np.max(np.hypot(vel[:, 0], vel[:, 1]), initial=0.0)))
+    return top
+
+
 def push_fan(palette: Palette, impulse: float, step: float) -> PushFan | None:
     """The push fan of a design push of ``impulse`` (N s) for ``palette``, its catches'
-    discs at most ``step`` (m) apart; None for no push.
+    discs at most ``step`` (m) apart; None for no push, and for a palette whose
+    references' flat output never exceeds :data:`FAN_FLOOR` (the fan would check
+    nothing: the shipped palette).
 
     The pushed catches' S hold the flat output's state, whose velocity the push
     changes by :func:`flat_speed_change`.
@@ -269,15 +284,17 @@ def push_fan(palette: Palette, impulse: float, step: float) -> PushFan | None:
     Raises
     ------
     ConfigError
-        If ``impulse`` > 0 and the palette has no pushed catches.
+        If ``impulse`` > 0, some reference is faster than the floor and the palette has
+        no pushed catches.
     """
-    if impulse <= 0.0:
+    if impulse <= 0.0 or fastest_flat_speed(palette) <= FAN_FLOOR + 1e-9:
         return None
     pushed = [c for c in palette.catches if lean_class_of(c) == PUSHED]
     if not pushed:
         raise ConfigError(
             "a design push needs a palette with pushed catches; build it with "
-            "`gracenav palette build` (catches on), or set design_push to 0"
+            "`gracenav palette build` (catches on), or set design_push (planner.design_push) "
+            "to 0"
         )
     opts = palette.options.catch
     slack = palette.d / (opts.grid_divisions if opts is not None else 1)

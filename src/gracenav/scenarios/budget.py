@@ -32,7 +32,12 @@ from dataclasses import dataclass
 from typing import Any
 
 from gracenav.errors import ConfigError
-from gracenav.library import DEFAULT_SPEED_CLEARANCE, expected_library_size, lattice_points
+from gracenav.library import (
+    DEFAULT_DESIGN_PUSH,
+    DEFAULT_SPEED_CLEARANCE,
+    expected_library_size,
+    lattice_points,
+)
 
 __all__ = [
     "DEFAULT_MAX_HALVINGS",
@@ -137,7 +142,7 @@ def estimate_run_memory(
     speed_clearance: float = DEFAULT_SPEED_CLEARANCE,
     limit: float | None = None,
     whole_map: Any = None,
-    design_push: float = 0.0,
+    design_push: float = DEFAULT_DESIGN_PUSH,
     policy_cap: float | None = None,
 ) -> MemoryEstimate:
     """Estimate the peak resident memory (bytes) of running a scenario on ``world_map``
@@ -235,7 +240,7 @@ def choose_halvings(
     keys: tuple[str, str] = ("planner.max_halvings", "planner.memory_limit_gib"),
     whole_map: Any = None,
     policy_cap: float | None = None,
-    design_push: float = 0.0,
+    design_push: float = DEFAULT_DESIGN_PUSH,
 ) -> MemoryEstimate:
     """The halvings of a library that fit ``memory_limit`` bytes, with their estimate.
 

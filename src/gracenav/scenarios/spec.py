@@ -14,7 +14,12 @@ import numpy as np
 from gracenav._util.io import load_document
 from gracenav._util.validate import Fields, require_mapping
 from gracenav.errors import ConfigError
-from gracenav.library import DEFAULT_SPEED_CLEARANCE, MAX_DESIGN_PUSH, MAX_SPEED_CLEARANCE
+from gracenav.library import (
+    DEFAULT_DESIGN_PUSH,
+    DEFAULT_SPEED_CLEARANCE,
+    MAX_DESIGN_PUSH,
+    MAX_SPEED_CLEARANCE,
+)
 from gracenav.params import BallbotParams
 from gracenav.planning.graph import CostCriterion, CostName
 from gracenav.planning.repair import ObstacleSensing
@@ -92,7 +97,8 @@ class Scenario:
         :func:`gracenav.library.build_library`).
     design_push : float
         ``planner.design_push``: the push (N s) the library keeps room to catch where
-        it moves faster than 0.8 m/s (0: none; see
+        it moves faster than 0.8 m/s (0: none; default
+        :data:`gracenav.library.DEFAULT_DESIGN_PUSH`, 8 N s; see
         :func:`gracenav.library.build_library`).
     moving_obstacles : tuple of MovingObstacle
         Obstacles not in the map, learned within ``sensing_range`` (m) of the robot.
@@ -140,7 +146,7 @@ class Scenario:
     capture: bool = True
     library_seed: int = 0
     speed_clearance: float = DEFAULT_SPEED_CLEARANCE
-    design_push: float = 0.0
+    design_push: float = DEFAULT_DESIGN_PUSH
     moving_obstacles: tuple[MovingObstacle, ...] = ()
     sensing_range: float = 3.0
     memory_limit: float = DEFAULT_MEMORY_LIMIT_GIB * GIB
@@ -297,7 +303,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         unit="s",
     )
     design_push = planner.number(
-        "design_push", 0.0, minimum=0.0, maximum=MAX_DESIGN_PUSH, unit="N s"
+        "design_push", DEFAULT_DESIGN_PUSH, minimum=0.0, maximum=MAX_DESIGN_PUSH, unit="N s"
     )
     memory_gib = planner.number(
         "memory_limit_gib",
