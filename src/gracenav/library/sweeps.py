@@ -83,6 +83,12 @@ class _Sweep:
     group_first: IntArray  # (Gp,) first sample
     group_size: IntArray  # (Gp,)
     total_reach: float  # bound around the start point
+    # Groups of consecutive groups, bounded by discs too (a push fan's thousands of
+    # samples per policy are checked group by group only near obstacles).
+    super_centre: FloatArray  # (Sp, 2)
+    super_reach: FloatArray  # (Sp,)
+    super_first: IntArray  # (Sp,) first group
+    super_size: IntArray  # (Sp,)
 
 
 def sweep_samples(
@@ -353,15 +359,30 @@ def _sweep(
     offsets = pos[sel]
     if fan is not None:
         offsets, reach = _with_fan(prim, sel, offsets, reach, fan)
-    first = np.arange(0, offsets.shape[0], _GROUP, dtype=np.int64)
-    size = np.minimum(_GROUP, offsets.shape[0] - first)
-    centres = 0.5 * (
-        np.minimum.reduceat(offsets, first, axis=0) + np.maximum.reduceat(offsets, first, axis=0)
+    centres, greach, first, size = _bounding_discs(offsets, reach)
+    total = float(np.max(np.hypot(*offsets.T) + reach))
+    scentres, sreach, sfirst, ssize = _bounding_discs(centres, greach)
+    return _Sweep(
+        offsets, reach, centres, greach, first, size, total, scentres, sreach, sfirst, ssize
+    )
+
+
+def _bounding_discs(
+    centres: FloatArray, reach: FloatArray
+) -> tuple[FloatArray, FloatArray, IntArray, IntArray]:
+    """Discs bounding each run of :data:`_GROUP` consecutive discs (``centres``,
+    ``reach``): (centres, reach, first disc, discs). A bounding disc's centre is the
+    middle of its discs' centres' box, its reach the farthest any of them reaches from
+    there, so a point whose clearance exceeds it (clearance is 1-Lipschitz) clears
+    every disc it bounds."""
+    first = np.arange(0, centres.shape[0], _GROUP, dtype=np.int64)
+    size = np.minimum(_GROUP, centres.shape[0] - first)
+    mid = 0.5 * (
+        np.minimum.reduceat(centres, first, axis=0) + np.maximum.reduceat(centres, first, axis=0)
     )
     own = np.repeat(np.arange(first.size), size)
-    greach = np.maximum.reduceat(np.hypot(*(offsets - centres[own]).T) + reach, first)
-    total = float(np.max(np.hypot(*offsets.T) + reach))
-    return _Sweep(offsets, reach, centres, greach, first, size, total)
+    bound = np.maximum.reduceat(np.hypot(*(centres - mid[own]).T) + reach, first)
+    return mid, bound, first, size
 
 
 def _with_fan(
@@ -417,21 +438,30 @@ def _check_sweeps(
     tables: dict[str, NDArray[Any]],
     footprint: float,
 ) -> BoolArray:
-    """Validity of undecided (type, point) pairs: group discs first, samples where a
-    group disc is not clear (compiled; the clearance is computed as
-    :meth:`gracenav.world.WorldMap.clearance` computes it, operation for operation)."""
+    """Validity of undecided (type, point) pairs: the discs bounding groups of groups
+    first, then the group discs where one is not clear, then the samples where a group
+    disc is not clear; a type's group that failed last is checked first at the next
+    pair (neighbouring points tend to fail at the same place; the verdicts do not
+    depend on the order). Compiled; the clearance is computed as
+    :meth:`gracenav.world.WorldMap.clearance` computes it, operation for operation."""
     valid = np.ones(pair_type.size, dtype=bool)
     if pair_type.size == 0:
         return valid
     _, nearest = world_map._clearance_data()
     (x0, y0), (x1, y1) = world_map.bounds
+    hint = np.full(tables["type_super_first"].size, -1, dtype=np.int64)
     _check_sweeps_kernel(
         valid,
         np.ascontiguousarray(points, dtype=np.float64),
         np.ascontiguousarray(pair_type, dtype=np.int64),
         np.ascontiguousarray(pair_point, dtype=np.int64),
-        tables["type_group_first"],
-        tables["type_group_count"],
+        tables["type_super_first"],
+        tables["type_super_count"],
+        tables["super_centre"],
+        tables["super_reach"],
+        tables["super_group_first"],
+        tables["super_size"],
+        hint,
         tables["group_centre"],
         tables["group_reach"],
         tables["group_sample_first"],
@@ -500,8 +530,13 @@ def _check_sweeps_kernel(
     points: Any,
     pair_type: Any,
     pair_point: Any,
-    type_group_first: Any,
-    type_group_count: Any,
+    type_super_first: Any,
+    type_super_count: Any,
+    super_centre: Any,
+    super_reach: Any,
+    super_group_first: Any,
+    super_size: Any,
+    hint: Any,
     group_centre: Any,
     group_reach: Any,
     group_sample_first: Any,
@@ -520,16 +555,43 @@ def _check_sweeps_kernel(
     ymax: float,
 ) -> None:
     """Mark the pairs whose swept D' is not clear: a pair is valid iff in every group
-    either the bounding disc or every sample is clear (see :func:`build_library`)."""
-    for a in prange(pair_type.size):  # independent pairs: no shared writes
+    of groups either its bounding disc or, in every group, the group's disc or every
+    sample is clear (see :func:`build_library`). ``hint[t]``: the group at which type
+    t failed last (-1: none), checked first; threads write it without order, which
+    changes only how soon a failing pair is found."""
+    for a in prange(pair_type.size):  # independent pairs: the hints are only hints
         t = pair_type[a]
         qx = points[pair_point[a], 0]
         qy = points[pair_point[a], 1]
-        g0 = type_group_first[t]
-        for g in range(g0, g0 + type_group_count[t]):
+        h = hint[t]
+        if h >= 0 and not _group_clear(
+            h,
+            qx,
+            qy,
+            group_centre,
+            group_reach,
+            group_sample_first,
+            group_size,
+            sample_offset,
+            sample_reach,
+            footprint,
+            nearest,
+            occupied,
+            ox,
+            oy,
+            res,
+            xmin,
+            ymin,
+            xmax,
+            ymax,
+        ):
+            valid[a] = False
+            continue
+        s0 = type_super_first[t]
+        for sg in range(s0, s0 + type_super_count[t]):
             c = _clearance_at(
-                qx + group_centre[g, 0],
-                qy + group_centre[g, 1],
+                qx + super_centre[sg, 0],
+                qy + super_centre[sg, 1],
                 nearest,
                 occupied,
                 ox,
@@ -540,13 +602,23 @@ def _check_sweeps_kernel(
                 xmax,
                 ymax,
             )
-            if c >= footprint + group_reach[g]:
+            if c >= footprint + super_reach[sg]:
                 continue
-            s0 = group_sample_first[g]
-            for k in range(s0, s0 + group_size[g]):
-                c = _clearance_at(
-                    qx + sample_offset[k, 0],
-                    qy + sample_offset[k, 1],
+            g0 = super_group_first[sg]
+            for g in range(g0, g0 + super_size[sg]):
+                if g == h:
+                    continue
+                if not _group_clear(
+                    g,
+                    qx,
+                    qy,
+                    group_centre,
+                    group_reach,
+                    group_sample_first,
+                    group_size,
+                    sample_offset,
+                    sample_reach,
+                    footprint,
                     nearest,
                     occupied,
                     ox,
@@ -556,28 +628,93 @@ def _check_sweeps_kernel(
                     ymin,
                     xmax,
                     ymax,
-                )
-                if c < footprint + sample_reach[k]:
+                ):
                     valid[a] = False
+                    hint[t] = g
                     break
             if not valid[a]:
                 break
 
 
+@njit(cache=True, nogil=True)
+def _group_clear(
+    g: int,
+    qx: float,
+    qy: float,
+    group_centre: Any,
+    group_reach: Any,
+    group_sample_first: Any,
+    group_size: Any,
+    sample_offset: Any,
+    sample_reach: Any,
+    footprint: float,
+    nearest: Any,
+    occupied: Any,
+    ox: float,
+    oy: float,
+    res: float,
+    xmin: float,
+    ymin: float,
+    xmax: float,
+    ymax: float,
+) -> bool:
+    """Whether group ``g`` of the swept samples is clear at (qx, qy): its disc, or else
+    every sample."""
+    c = _clearance_at(
+        qx + group_centre[g, 0],
+        qy + group_centre[g, 1],
+        nearest,
+        occupied,
+        ox,
+        oy,
+        res,
+        xmin,
+        ymin,
+        xmax,
+        ymax,
+    )
+    if c >= footprint + group_reach[g]:
+        return True
+    s0 = group_sample_first[g]
+    for k in range(s0, s0 + group_size[g]):
+        c = _clearance_at(
+            qx + sample_offset[k, 0],
+            qy + sample_offset[k, 1],
+            nearest,
+            occupied,
+            ox,
+            oy,
+            res,
+            xmin,
+            ymin,
+            xmax,
+            ymax,
+        )
+        if c < footprint + sample_reach[k]:
+            return False
+    return True
+
+
 def _sweep_tables(sweeps: list[_Sweep]) -> dict[str, NDArray[Any]]:
     """Concatenate the sweeps of every type (rotated) into flat tables."""
-    offs, reach, gc, gr, gsf, gsz, tgf, tgc, total = [], [], [], [], [], [], [], [], []
-    n_samples = n_groups = 0
+    offs, reach, gc, gr, gsf, gsz, total = [], [], [], [], [], [], []
+    sc, sr, sgf, ssz, tsf, tsc = [], [], [], [], [], []
+    n_samples = n_groups = n_supers = 0
     for sw in sweeps:
         for k in range(ORIENTATIONS):
+            sc.append(_rotate(sw.super_centre, k))
+            sr.append(sw.super_reach)
+            sgf.append(sw.super_first + n_groups)
+            ssz.append(sw.super_size)
+            tsf.append(n_supers)
+            tsc.append(sw.super_first.size)
+            n_supers += sw.super_first.size
             offs.append(_rotate(sw.offsets, k))
             reach.append(sw.reach)
             gc.append(_rotate(sw.group_centre, k))
             gr.append(sw.group_reach)
             gsf.append(sw.group_first + n_samples)
             gsz.append(sw.group_size)
-            tgf.append(n_groups)
-            tgc.append(sw.group_first.size)
             total.append(sw.total_reach)
             n_samples += sw.offsets.shape[0]
             n_groups += sw.group_first.size
@@ -593,7 +730,11 @@ def _sweep_tables(sweeps: list[_Sweep]) -> dict[str, NDArray[Any]]:
         "group_reach": np.concatenate(gr),
         "group_sample_first": np.concatenate(gsf).astype(np.int64),
         "group_size": np.concatenate(gsz).astype(np.int64),
-        "type_group_first": np.array(tgf, dtype=np.int64),
-        "type_group_count": np.array(tgc, dtype=np.int64),
+        "super_centre": np.concatenate(sc),
+        "super_reach": np.concatenate(sr),
+        "super_group_first": np.concatenate(sgf).astype(np.int64),
+        "super_size": np.concatenate(ssz).astype(np.int64),
+        "type_super_first": np.array(tsf, dtype=np.int64),
+        "type_super_count": np.array(tsc, dtype=np.int64),
         "type_total_reach": np.array(total),
     }
