@@ -450,25 +450,7 @@ def _check_sweeps(
     _, nearest = world_map._clearance_data()
     (x0, y0), (x1, y1) = world_map.bounds
     hint = np.full(tables["type_super_first"].size, -1, dtype=np.int64)
-    _check_sweeps_kernel(
-        valid,
-        np.ascontiguousarray(points, dtype=np.float64),
-        np.ascontiguousarray(pair_type, dtype=np.int64),
-        np.ascontiguousarray(pair_point, dtype=np.int64),
-        tables["type_super_first"],
-        tables["type_super_count"],
-        tables["super_centre"],
-        tables["super_reach"],
-        tables["super_group_first"],
-        tables["super_size"],
-        hint,
-        tables["group_centre"],
-        tables["group_reach"],
-        tables["group_sample_first"],
-        tables["group_size"],
-        tables["sample_offset"],
-        tables["sample_reach"],
-        float(footprint),
+    grid = (
         nearest,
         np.ascontiguousarray(world_map.occupied, dtype=np.bool_),
         float(world_map.origin[0]),
@@ -478,6 +460,39 @@ def _check_sweeps(
         float(y0),
         float(x1),
         float(y1),
+    )
+    supers = tuple(
+        tables[k]
+        for k in (
+            "type_super_first",
+            "type_super_count",
+            "super_centre",
+            "super_reach",
+            "super_group_first",
+            "super_size",
+        )
+    )
+    groups = tuple(
+        tables[k]
+        for k in (
+            "group_centre",
+            "group_reach",
+            "group_sample_first",
+            "group_size",
+            "sample_offset",
+            "sample_reach",
+        )
+    )
+    _check_sweeps_kernel(
+        valid,
+        np.ascontiguousarray(points, dtype=np.float64),
+        np.ascontiguousarray(pair_type, dtype=np.int64),
+        np.ascontiguousarray(pair_point, dtype=np.int64),
+        supers,
+        groups,
+        hint,
+        float(footprint),
+        grid,
     )
     return valid
 
@@ -497,7 +512,8 @@ def _clearance_at(
     ymax: float,
 ) -> float:
     """:meth:`gracenav.world.WorldMap.clearance` of one point, the same operations in
-    the same order (so the same value)."""
+    the same order (so the same value). ``_check_sweeps`` passes the arguments after
+    the point as one tuple, the grid."""
     ny, nx = occupied.shape
     fx = np.floor((px - ox) / res)
     fy = np.floor((py - oy) / res)
@@ -524,175 +540,59 @@ def _clearance_at(
     return max(min(best, edge), 0.0)
 
 
+@njit(cache=True, nogil=True)
+def _group_clear(g: int, qx: float, qy: float, footprint: float, groups: Any, grid: Any) -> bool:
+    """Whether group ``g`` of the swept samples is clear at (qx, qy): its disc, or else
+    every sample (``groups``: the group and sample tables, ``grid``: the map's, as
+    :func:`_check_sweeps` packs them)."""
+    centre, reach, sample_first, size, sample_offset, sample_reach = groups
+    if _clearance_at(qx + centre[g, 0], qy + centre[g, 1], *grid) >= footprint + reach[g]:
+        return True
+    for k in range(sample_first[g], sample_first[g] + size[g]):
+        c = _clearance_at(qx + sample_offset[k, 0], qy + sample_offset[k, 1], *grid)
+        if c < footprint + sample_reach[k]:
+            return False
+    return True
+
+
 @njit(cache=True, nogil=True, parallel=True)
 def _check_sweeps_kernel(
     valid: Any,
     points: Any,
     pair_type: Any,
     pair_point: Any,
-    type_super_first: Any,
-    type_super_count: Any,
-    super_centre: Any,
-    super_reach: Any,
-    super_group_first: Any,
-    super_size: Any,
+    supers: Any,
+    groups: Any,
     hint: Any,
-    group_centre: Any,
-    group_reach: Any,
-    group_sample_first: Any,
-    group_size: Any,
-    sample_offset: Any,
-    sample_reach: Any,
     footprint: float,
-    nearest: Any,
-    occupied: Any,
-    ox: float,
-    oy: float,
-    res: float,
-    xmin: float,
-    ymin: float,
-    xmax: float,
-    ymax: float,
+    grid: Any,
 ) -> None:
     """Mark the pairs whose swept D' is not clear: a pair is valid iff in every group
     of groups either its bounding disc or, in every group, the group's disc or every
     sample is clear (see :func:`build_library`). ``hint[t]``: the group at which type
     t failed last (-1: none), checked first; threads write it without order, which
     changes only how soon a failing pair is found."""
+    type_first, type_count, centre, reach, group_first, size = supers
     for a in prange(pair_type.size):  # independent pairs: the hints are only hints
         t = pair_type[a]
         qx = points[pair_point[a], 0]
         qy = points[pair_point[a], 1]
         h = hint[t]
-        if h >= 0 and not _group_clear(
-            h,
-            qx,
-            qy,
-            group_centre,
-            group_reach,
-            group_sample_first,
-            group_size,
-            sample_offset,
-            sample_reach,
-            footprint,
-            nearest,
-            occupied,
-            ox,
-            oy,
-            res,
-            xmin,
-            ymin,
-            xmax,
-            ymax,
-        ):
-            valid[a] = False
-            continue
-        s0 = type_super_first[t]
-        for sg in range(s0, s0 + type_super_count[t]):
-            c = _clearance_at(
-                qx + super_centre[sg, 0],
-                qy + super_centre[sg, 1],
-                nearest,
-                occupied,
-                ox,
-                oy,
-                res,
-                xmin,
-                ymin,
-                xmax,
-                ymax,
-            )
-            if c >= footprint + super_reach[sg]:
+        bad = h >= 0 and not _group_clear(h, qx, qy, footprint, groups, grid)
+        for sg in range(type_first[t], type_first[t] + type_count[t]):
+            if bad:
+                break
+            if (
+                _clearance_at(qx + centre[sg, 0], qy + centre[sg, 1], *grid)
+                >= footprint + reach[sg]
+            ):
                 continue
-            g0 = super_group_first[sg]
-            for g in range(g0, g0 + super_size[sg]):
-                if g == h:
-                    continue
-                if not _group_clear(
-                    g,
-                    qx,
-                    qy,
-                    group_centre,
-                    group_reach,
-                    group_sample_first,
-                    group_size,
-                    sample_offset,
-                    sample_reach,
-                    footprint,
-                    nearest,
-                    occupied,
-                    ox,
-                    oy,
-                    res,
-                    xmin,
-                    ymin,
-                    xmax,
-                    ymax,
-                ):
-                    valid[a] = False
+            for g in range(group_first[sg], group_first[sg] + size[sg]):
+                if g != h and not _group_clear(g, qx, qy, footprint, groups, grid):
+                    bad = True
                     hint[t] = g
                     break
-            if not valid[a]:
-                break
-
-
-@njit(cache=True, nogil=True)
-def _group_clear(
-    g: int,
-    qx: float,
-    qy: float,
-    group_centre: Any,
-    group_reach: Any,
-    group_sample_first: Any,
-    group_size: Any,
-    sample_offset: Any,
-    sample_reach: Any,
-    footprint: float,
-    nearest: Any,
-    occupied: Any,
-    ox: float,
-    oy: float,
-    res: float,
-    xmin: float,
-    ymin: float,
-    xmax: float,
-    ymax: float,
-) -> bool:
-    """Whether group ``g`` of the swept samples is clear at (qx, qy): its disc, or else
-    every sample."""
-    c = _clearance_at(
-        qx + group_centre[g, 0],
-        qy + group_centre[g, 1],
-        nearest,
-        occupied,
-        ox,
-        oy,
-        res,
-        xmin,
-        ymin,
-        xmax,
-        ymax,
-    )
-    if c >= footprint + group_reach[g]:
-        return True
-    s0 = group_sample_first[g]
-    for k in range(s0, s0 + group_size[g]):
-        c = _clearance_at(
-            qx + sample_offset[k, 0],
-            qy + sample_offset[k, 1],
-            nearest,
-            occupied,
-            ox,
-            oy,
-            res,
-            xmin,
-            ymin,
-            xmax,
-            ymax,
-        )
-        if c < footprint + sample_reach[k]:
-            return False
-    return True
+        valid[a] = not bad
 
 
 def _sweep_tables(sweeps: list[_Sweep]) -> dict[str, NDArray[Any]]:
