@@ -74,3 +74,5 @@ def test_palette_show(capsys) -> None:
     assert "rest_to_cruise_x_2_0" in out and "capture[S=6G]" in out
     assert "(40 primitives and their larger-domain variants)" in out
     assert "limits: lean 4.5° planned, 8° verified; torque 60 N m; cruise 0.5 m/s" in out
+    assert "design push (planner.design_push, default 8 N s)" in out
+    assert "this palette's reach 0.7" in out and "so it changes no library" in out

@@ -290,6 +290,8 @@ def run_verify(args: argparse.Namespace) -> int:
 
 def run_show(args: argparse.Namespace) -> int:
     """Run ``gracenav palette show``."""
+    from gracenav.library import DEFAULT_DESIGN_PUSH
+    from gracenav.library.sweeps import FAN_FLOOR, fastest_flat_speed
     from gracenav.palette import PaletteLimits, load_palette
 
     pal = load_palette(args.file)
@@ -299,4 +301,11 @@ def run_show(args: argparse.Namespace) -> int:
         f"variants), d = {pal.d} m, key {pal.key[:12]}"
     )
     print(PaletteLimits.of(pal).describe(pal.params.torque_limit))
+    fastest = fastest_flat_speed(pal)
+    applies = "so it applies" if fastest > FAN_FLOOR else "so it changes no library"
+    print(
+        f"design push (planner.design_push, default {DEFAULT_DESIGN_PUSH:g} N s): kept room "
+        f"where a reference's flat output exceeds {FAN_FLOOR:g} m/s; this palette's reach "
+        f"{fastest:.3f} m/s, {applies}"
+    )
     return 0
