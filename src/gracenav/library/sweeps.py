@@ -570,15 +570,26 @@ def _check_sweeps_kernel(
     """Mark the pairs whose swept D' is not clear: a pair is valid iff in every group
     of groups either its bounding disc or, in every group, the group's disc or every
     sample is clear (see :func:`build_library`). ``hint[t]``: the group at which type
-    t failed last (-1: none), checked first; threads write it without order, which
-    changes only how soon a failing pair is found."""
+    t failed last (-1: none), checked first, behind its group of groups' disc as in the
+    full check; threads write it without order, which changes only how soon a failing
+    pair is found, never the verdict."""
     type_first, type_count, centre, reach, group_first, size = supers
     for a in prange(pair_type.size):  # independent pairs: the hints are only hints
         t = pair_type[a]
         qx = points[pair_point[a], 0]
         qy = points[pair_point[a], 1]
         h = hint[t]
-        bad = h >= 0 and not _group_clear(h, qx, qy, footprint, groups, grid)
+        bad = False
+        if h >= 0:
+            # The hinted group as the loop below would reach it: within its group of
+            # groups (runs of _GROUP from the type's first group), only when that
+            # group's disc is not clear, so the verdict never depends on the hint.
+            s0 = type_first[t]
+            sh = s0 + (h - group_first[s0]) // _GROUP
+            near = _clearance_at(qx + centre[sh, 0], qy + centre[sh, 1], *grid) < (
+                footprint + reach[sh]
+            )
+            bad = near and not _group_clear(h, qx, qy, footprint, groups, grid)
         for sg in range(type_first[t], type_first[t] + type_count[t]):
             if bad:
                 break
