@@ -266,14 +266,20 @@ def flat_speed_change(params: BallbotParams, impulse: float) -> float:
     return float(flat[2])
 
 
+def _flat_velocity(prim: Any, flat_length: FloatArray) -> FloatArray:
+    """The flat output's velocity (T+1, 2) along a primitive's reference: the ball's
+    plus L times the lean rate, per axis."""
+    vel: FloatArray = prim.position[:, 2:4] + flat_length * prim.states[:, 6:8]
+    return vel
+
+
 def fastest_flat_speed(palette: Palette) -> float:
     """The largest speed (m/s) of the flat output along any of ``palette``'s policies'
     references (the speed :func:`_with_fan` compares with a fan's floor)."""
     length = flat_output_lengths(palette.params)
     top = 0.0
     for pol in palette.policies:
-        prim = pol.primitive
-        vel = prim.position[:, 2:4] + length * prim.states[:, 6:8]
+        vel = _flat_velocity(pol.primitive, length)
         top = max(top, float(np.max(np.hypot(vel[:, 0], vel[:, 1]), initial=0.0)))
     return top
 
@@ -398,7 +404,7 @@ def _with_fan(
     discs move within a stride, so the states between checked ones are covered too.
     """
     ref = prim.position[:, :2] - prim.position[0, :2] + fan.flat_length * prim.states[:, 2:4]
-    vel = prim.position[:, 2:4] + fan.flat_length * prim.states[:, 6:8]
+    vel = _flat_velocity(prim, fan.flat_length)
     fast = np.flatnonzero(np.hypot(vel[:, 0], vel[:, 1]) > fan.above + 1e-9)
     if fast.size == 0:
         return offsets, reach
