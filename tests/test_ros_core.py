@@ -4,15 +4,19 @@ and the navigator core's balancing, queueing and safe behaviours."""
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
 
+from gracenav._util.io import note_signal
 from gracenav.ros import convert
 from gracenav.ros.core import NavigatorCore, NavigatorOptions, Phase
 from gracenav.ros.env import LOCAL_DDS, local_dds_environment
+from gracenav.ros.node import signals_ask_to_stop, stop_requested
 
 
 def test_import_gracenav_and_its_ros_package_do_not_import_rclpy() -> None:
@@ -21,6 +25,32 @@ def test_import_gracenav_and_its_ros_package_do_not_import_rclpy() -> None:
         "gracenav.cli; assert 'rclpy' not in sys.modules, 'rclpy imported'"
     )
     subprocess.run([sys.executable, "-c", code], check=True, timeout=60)
+
+
+def _deliver(sig: int) -> None:
+    os.kill(os.getpid(), sig)
+    end = time.monotonic() + 5.0
+    while time.monotonic() < end:  # the handler runs between two bytecodes
+        time.sleep(0.001)
+        if stop_requested():
+            return
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_first_signal_asks_the_spin_loops_to_stop_and_a_second_interrupts(sig: int) -> None:
+    before = signal.getsignal(sig)
+    note_signal(None)
+    try:
+        with signals_ask_to_stop():
+            assert not stop_requested()
+            _deliver(sig)  # recorded, no exception: the loops return by themselves
+            assert stop_requested()
+            with pytest.raises(KeyboardInterrupt):
+                os.kill(os.getpid(), sig)
+                time.sleep(5.0)
+        assert signal.getsignal(sig) is before
+    finally:
+        note_signal(None)
 
 
 def test_local_dds_environment_keeps_the_users_values() -> None:

@@ -205,11 +205,13 @@ def test_nodes_reach_the_goal_recover_from_a_push_and_stop_cleanly(
         assert "push of (0, 9) N s" in (tmp_path / "sim.log").read_text()
         # Silence: the simulator stops; the navigator holds, then stops.
         stopped = True
-        assert _stop(sim) == 0
+        code = _stop(sim)
+        assert code == 0, f"the simulator exited with {code}: {(tmp_path / 'sim.log').read_text()}"
         _wait("the navigator to stop", lambda: state().get("state") == "stopped", spin, 10)
         text = nav_log()
         assert "holding the last command" in text and "stopping, zero torque" in text
-        assert _stop(nav) == 0
+        code = _stop(nav)
+        assert code == 0, f"the navigator exited with {code}: {nav_log()}"
     finally:
         for proc in (sim, nav):
             if proc.poll() is None:

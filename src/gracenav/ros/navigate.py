@@ -28,6 +28,7 @@ from gracenav.ros import convert
 from gracenav.ros.core import NavigatorCore, NavigatorOptions
 from gracenav.ros.node import (
     seconds,
+    signals_ask_to_stop,
     spin_until,
     stamp,
     start_rclpy,
@@ -420,7 +421,8 @@ def run_navigator(overrides: dict[str, Any], ros_args: Sequence[str] = ()) -> in
     status = 0
     try:
         nav = _Navigator(rclpy, overrides)
-        spin_until(rclpy, nav.node, lambda: nav is not None and nav.done)
+        with signals_ask_to_stop():
+            spin_until(rclpy, nav.node, lambda: nav is not None and nav.done)
         if nav.done and nav.finished not in ("goal_reached", "loops_completed"):
             status = 1
     except KeyboardInterrupt:

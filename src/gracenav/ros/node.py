@@ -3,16 +3,27 @@ service, map messages, time stamps and the spin loop that ends cleanly on SIGINT
 
 from __future__ import annotations
 
+import signal
+import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
 
+from gracenav._util.io import note_signal, pending_signal
 from gracenav.errors import ConfigError, MapError
 from gracenav.ros.env import local_dds_environment
 
-__all__ = ["grid_message", "spin_until", "start_rclpy", "world_map_from_grid"]
+__all__ = [
+    "grid_message",
+    "signals_ask_to_stop",
+    "spin_until",
+    "start_rclpy",
+    "stop_requested",
+    "world_map_from_grid",
+]
 
 
 def start_rclpy(ros_args: Sequence[str] = ()) -> Any:
@@ -38,14 +49,45 @@ def start_rclpy(ros_args: Sequence[str] = ()) -> Any:
     return rclpy
 
 
+def stop_requested() -> bool:
+    """Whether SIGINT or SIGTERM asked the node to stop (:func:`signals_ask_to_stop`)."""
+    return pending_signal() is not None
+
+
+@contextmanager
+def signals_ask_to_stop() -> Iterator[None]:
+    """While inside, the first SIGINT or SIGTERM only records itself
+    (:func:`stop_requested`); the spin loops check it between two waits and return,
+    so no KeyboardInterrupt lands inside rclpy's executor or a callback half done (the
+    node's handles and the work it tracks stay consistent for the shutdown). A second
+    signal raises KeyboardInterrupt at once, for a loop that does not come back. Outside
+    the main thread (no signal handlers there) it changes nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def ask(signum: int, frame: Any) -> None:
+        if pending_signal() is not None:
+            raise KeyboardInterrupt
+        note_signal(signum)
+
+    previous = {sig: signal.signal(sig, ask) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
 def spin_until(rclpy: Any, node: Any, done: Callable[[], bool], period: float = 0.05) -> None:
-    """Spin ``node`` until ``done()`` (or KeyboardInterrupt, which propagates)."""
+    """Spin ``node`` until ``done()`` or :func:`stop_requested` (a KeyboardInterrupt
+    propagates)."""
     from rclpy.executors import SingleThreadedExecutor
 
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     try:
-        while rclpy.ok() and not done():
+        while rclpy.ok() and not done() and not stop_requested():
             executor.spin_once(timeout_sec=period)
     finally:
         executor.remove_node(node)

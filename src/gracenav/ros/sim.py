@@ -28,7 +28,9 @@ from gracenav.ros import convert
 from gracenav.ros.node import (
     grid_message,
     seconds,
+    signals_ask_to_stop,
     start_rclpy,
+    stop_requested,
     transient_local_qos,
 )
 
@@ -185,20 +187,21 @@ class _Sim:
         executor.add_node(self.node)
         self.wall_start = time.monotonic()
         try:
-            while rclpy.ok() and not self.done:
+            while rclpy.ok() and not self.done and not stop_requested():
                 self.publish_state()
                 sent = time.monotonic()
                 if self.lockstep:
-                    while self._cmd_tick < self.tick and rclpy.ok():
+                    while self._cmd_tick < self.tick and rclpy.ok() and not stop_requested():
                         executor.spin_once(timeout_sec=0.02)
                         if time.monotonic() - sent >= self.resend and self._cmd_tick < self.tick:
                             self.publish_state()  # for a controller that joined late
                             sent = time.monotonic()
                 else:
                     due = self.wall_start + (self.tick + 1) * self.dt
-                    while time.monotonic() < due:
+                    while time.monotonic() < due and not stop_requested():
                         executor.spin_once(timeout_sec=max(0.0, due - time.monotonic()))
-                self.advance()
+                if not stop_requested():
+                    self.advance()
         finally:
             executor.remove_node(self.node)
             executor.shutdown(timeout_sec=0.5)
@@ -221,7 +224,8 @@ def run_sim(overrides: dict[str, Any], ros_args: Sequence[str] = ()) -> int:
     sim = None
     try:
         sim = _Sim(rclpy, overrides)
-        sim.run(rclpy)
+        with signals_ask_to_stop():
+            sim.run(rclpy)
     except KeyboardInterrupt:
         pass
     finally:
