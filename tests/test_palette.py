@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -297,3 +298,50 @@ def test_catches_reach_past_the_top_cruise_speed() -> None:
 
     with pytest.raises(ConfigError, match="finite"):
         catch_speeds_for((0.5, float("inf")))
+
+
+def test_the_speed_palette_is_shipped_and_is_what_its_build_command_asks_for() -> None:
+    """`--palette speed` is the file `gracenav palette build --reference limited
+    --cruise-speeds 1.0 1.2` writes: its key is that of the command's inputs (the
+    CMU robot, its designed gains, the command's limits), so it is reproducible; every
+    policy it keeps passed verification and it carries the three levels."""
+    from gracenav import BallbotParams
+    from gracenav.palette import PaletteLimits, catch_speeds_for, palette_file
+
+    speeds = (0.5, 1.0, 1.2)
+    limits = PaletteLimits(
+        cruise_speeds=speeds,
+        catch_speeds=catch_speeds_for(speeds),
+        max_speed=max(0.8, 1.1 * speeds[-1]),
+        reference="limited",
+    )
+    params = BallbotParams()
+    pal = load_palette("speed")
+    assert palette_file("speed") == shipped_palette_path("speed") != shipped_palette_path()
+    assert pal.key == palette_key(
+        params, design_gains(params), limits.verification_options(), 0.5, limits.primitive_options()
+    )
+    assert PaletteLimits.of(pal) == limits
+    kept = (*pal.policies, *pal.catches, *pal.shifts)
+    assert all(p.report is not None and p.report.passed for p in kept)
+    for name in ("cruise2_x", "cruise3_xy", "rest_to_cruise2_x_3_0"):
+        assert name in pal.names, name
+    assert "catch_1.3[pushed,S=1G]" in {c.label for c in pal.catches}
+    assert pal.key != load_palette().key and len(pal.policies) > len(load_palette().policies)
+
+
+def test_shipped_palettes_by_name_and_files_of_those_names(monkeypatch, tmp_path) -> None:
+    from gracenav.palette import SHIPPED_PALETTES, palette_file
+
+    assert set(SHIPPED_PALETTES) == {"default", "speed"}
+    assert load_palette("default").key == load_palette().key
+    monkeypatch.setenv(PALETTE_ENV, "speed")
+    assert load_palette().key == load_palette("speed").key
+    monkeypatch.delenv(PALETTE_ENV)
+    # A Path, or a string with a directory, is a file, never a shipped name.
+    monkeypatch.chdir(tmp_path)
+    assert palette_file("./speed") == tmp_path.joinpath("speed").relative_to(tmp_path)
+    with pytest.raises(CacheError, match="cannot read palette file speed"):
+        load_palette(Path("speed"))
+    with pytest.raises(CacheError, match="shipped: default, speed"):
+        shipped_palette_path("fast")

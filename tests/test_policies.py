@@ -178,3 +178,29 @@ def test_options_validation() -> None:
         VerificationOptions(max_scale=0.5)
     with pytest.raises(ConfigError, match="correlation"):
         correlated_shape(0.1, 0.1, 1.0)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "name", ["cruise3_x", "rest_to_cruise2_x_3_0", "cruise2_x_to_cruise2_y_3_3"]
+)
+def test_the_speed_palettes_fast_policies_hold_from_points_the_verifier_never_used(
+    name: str,
+) -> None:
+    """The shipped speed palette's policies at 1.0–1.2 m/s (the 1.2 m/s trim needs 59.6
+    of the 60 N m) verified again on the 3D model from another boundary set and from
+    random interior states of S: the run stays in D' and ends in G."""
+    from gracenav.palette import load_palette
+
+    pal = load_palette("speed")
+    pol = pal[name]
+    rep = verify_placements(pol, dataclasses.replace(pal.options, boundary_points=67))
+    assert rep.passed, rep
+    rng = np.random.default_rng(11)
+    u = rng.normal(size=(12, 4))
+    u *= (rng.uniform(size=(12, 1)) ** 0.25) / np.linalg.norm(u, axis=1, keepdims=True)
+    ell = np.linalg.cholesky(np.linalg.inv(pol.start_domain.shape_matrix))
+    for p0 in pol.start_domain.center + u @ ell.T:
+        res = run_policy(pol, p0)
+        assert res.max_domain_value <= 1.0
+        assert pol.goal_domain.value(res.position_state[-1]) <= 1.0

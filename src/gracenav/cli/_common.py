@@ -60,15 +60,18 @@ def number(
 
 
 def add_palette_argument(parser: argparse.ArgumentParser) -> None:
-    """Add ``--palette FILE`` (a palette file instead of the shipped or cached one)."""
+    """Add ``--palette FILE`` (a palette file, or a shipped palette by name, instead of
+    the default)."""
     parser.add_argument(
         "--palette",
-        type=Path,
+        type=str,
         default=None,
         metavar="FILE",
         help=(
-            "motion policy palette file to use (default: $GRACENAV_PALETTE, else the "
-            "shipped palette); e.g. one written by `gracenav palette build --out FILE`"
+            "motion policy palette to use: a file (e.g. one written by `gracenav palette "
+            "build --out FILE`) or a shipped palette by name: 'default' (0.5 m/s) or "
+            "'speed' (cruise levels 0.5, 1.0 and 1.2 m/s); a file of such a name is "
+            "./NAME (default: $GRACENAV_PALETTE, else the default palette)"
         ),
     )
 

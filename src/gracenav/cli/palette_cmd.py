@@ -106,7 +106,13 @@ def register(sub: Any) -> None:
         help="re-verify every policy of a palette file on the 3D model",
         description="Re-run the verification of every policy of the palette and report.",
     )
-    v.add_argument("--file", type=Path, default=None, help="palette file (default: shipped)")
+    v.add_argument(
+        "--file",
+        type=str,
+        default=None,
+        help="palette file, or a shipped palette by name: default, speed (default: "
+        "$GRACENAV_PALETTE, else the default palette)",
+    )
     v.add_argument(
         "--switches",
         action="store_true",
@@ -126,7 +132,13 @@ def register(sub: Any) -> None:
             "torque of every policy (lean in degrees)."
         ),
     )
-    sh.add_argument("--file", type=Path, default=None, help="palette file (default: shipped)")
+    sh.add_argument(
+        "--file",
+        type=str,
+        default=None,
+        help="palette file, or a shipped palette by name: default, speed (default: "
+        "$GRACENAV_PALETTE, else the default palette)",
+    )
     sh.set_defaults(func=run_show)
 
 

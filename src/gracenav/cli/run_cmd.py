@@ -109,7 +109,7 @@ def _execute(
     plant: PlantKind | None,
     animation: bool,
     params_path: Path | None,
-    palette_path: Path | None = None,
+    palette_path: str | Path | None = None,
     log_path: Path | None = None,
 ) -> int:
     import dataclasses

@@ -23,9 +23,11 @@ from gracenav.palette.build import (
 from gracenav.palette.files import (
     GAINS_RTOL,
     PALETTE_ENV,
+    SHIPPED_PALETTES,
     build_palette_for,
     cached_palette_path,
     load_palette,
+    palette_file,
     shipped_palette_path,
 )
 from gracenav.palette.limits import PaletteLimits, catch_speeds_for
@@ -41,6 +43,7 @@ __all__ = [
     "PALETTE_ENV",
     "PALETTE_FORMAT",
     "REGULATOR_NAME",
+    "SHIPPED_PALETTES",
     "Palette",
     "PaletteLimits",
     "build_palette",
@@ -48,6 +51,7 @@ __all__ = [
     "cached_palette_path",
     "catch_speeds_for",
     "load_palette",
+    "palette_file",
     "palette_key",
     "shipped_palette_path",
 ]

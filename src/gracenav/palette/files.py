@@ -21,9 +21,11 @@ from gracenav.primitives import PrimitiveSetOptions
 __all__ = [
     "GAINS_RTOL",
     "PALETTE_ENV",
+    "SHIPPED_PALETTES",
     "build_palette_for",
     "cached_palette_path",
     "load_palette",
+    "palette_file",
     "shipped_palette_path",
 ]
 
@@ -37,9 +39,38 @@ GAINS_RTOL = 1e-8
 PALETTE_ENV = "GRACENAV_PALETTE"
 
 
-def shipped_palette_path() -> Path:
-    """Path of the palette file shipped inside the package."""
-    return Path(str(resources.files("gracenav") / "data" / "palette.npz"))
+#: The palettes shipped inside the package, by name: ``default`` (one cruise speed,
+#: 0.5 m/s; nonic references), used when no palette is asked for, and ``speed`` (cruise
+#: levels 0.5, 1.0 and 1.2 m/s, limited references; built with ``gracenav palette build
+#: --reference limited --cruise-speeds 1.0 1.2``). ``--palette NAME`` and
+#: ``$GRACENAV_PALETTE=NAME`` select one (:func:`palette_file`); a file of that name is
+#: ``./NAME``.
+SHIPPED_PALETTES: dict[str, str] = {"default": "palette.npz", "speed": "palette-speed.npz"}
+
+
+def shipped_palette_path(name: str = "default") -> Path:
+    """Path of the palette file shipped inside the package under ``name`` (one of
+    :data:`SHIPPED_PALETTES`).
+
+    Raises
+    ------
+    CacheError
+        ``name`` is not a shipped palette.
+    """
+    if name not in SHIPPED_PALETTES:
+        raise CacheError(
+            f"no palette named {name!r} is shipped (shipped: {', '.join(SHIPPED_PALETTES)})"
+        )
+    return Path(str(resources.files("gracenav") / "data" / SHIPPED_PALETTES[name]))
+
+
+def palette_file(path: str | Path) -> Path:
+    """The file ``path`` names: a shipped palette's when ``path`` is a string equal to
+    one of the names of :data:`SHIPPED_PALETTES`, else ``path`` itself (a
+    :class:`~pathlib.Path` or ``"./speed"`` is always a file)."""
+    if isinstance(path, str) and path in SHIPPED_PALETTES:
+        return shipped_palette_path(path)
+    return Path(path)
 
 
 def _requested_differences(
@@ -127,7 +158,7 @@ def _read_palette(path: Path) -> Palette:
     except OSError as exc:
         raise CacheError(
             f"cannot read palette file {path}: {exc.strerror}; build one with "
-            "`gracenav palette build`"
+            "`gracenav palette build`, or name a shipped palette: " + ", ".join(SHIPPED_PALETTES)
         ) from None
     pal = Palette.from_bytes(data, source=str(path))
     if pal.key != pal.expected_key():
@@ -183,7 +214,8 @@ def load_palette(
     Parameters
     ----------
     path : str or Path, optional
-        Force this palette file (default ``$GRACENAV_PALETTE`` if set). A forced file
+        Force this palette file, or a shipped palette by name (:data:`SHIPPED_PALETTES`,
+        e.g. ``"speed"``; default ``$GRACENAV_PALETTE`` if set). A forced file
         that does not match the request is an error, never rebuilt; its primitive set
         options (references, speed levels: ``gracenav palette build --reference
         --cruise-speeds``) are taken as they are.
@@ -207,7 +239,7 @@ def load_palette(
     """
     forced = path if path is not None else (os.environ.get(PALETTE_ENV) or None)
     if forced is not None:
-        pal = _read_palette(Path(forced))
+        pal = _read_palette(palette_file(forced))
         # What is not asked for is what the file was built for; its gains are then
         # designed anew from the file's design inputs and compared, as for any request.
         params = params if params is not None else pal.params
