@@ -205,3 +205,47 @@ def test_memory_estimate_counts_the_design_push(palette, monkeypatch) -> None:
     assert pushed.policies is not None and plain.policies is not None
     assert pushed.policies < plain.policies
     assert len(build_library(palette, room, max_halvings=0, design_push=7.5)) <= pushed.policies
+
+
+def test_the_fans_walk_and_its_discs_match_a_state_by_state_reference() -> None:
+    """The compiled walk (which states of a fast reference get their catches' discs)
+    and the discs of all of them at once equal the walk written state by state with
+    :meth:`PushFan.turn` and :meth:`PushFan.samples`, on the shipped speed palette."""
+    from gracenav.palette import load_palette
+
+    pal = load_palette("speed")
+    fan = push_fan(pal, DEFAULT_DESIGN_PUSH, 0.05)
+    assert fan is not None
+    checked = 0
+    for name in ("rest_to_cruise2_x_3_0", "cruise3_xy", "cruise2_x_to_cruise2_y_3_3"):
+        prim = pal[name].primitive
+        ref = prim.position[:, :2] + fan.flat_length * prim.states[:, 2:4]
+        vel = sweeps_module._flat_velocity(prim, fan.flat_length)
+        fast = np.flatnonzero(np.hypot(vel[:, 0], vel[:, 1]) > fan.above + 1e-9)
+        ticks = fast[:: sweeps_module._FAN_STRIDE]
+        members = fan.members(vel[ticks])
+        assert members is not None and ticks.size > 10
+        expect = [0]
+        for i in range(1, ticks.size):
+            p = expect[-1]
+            moved = float(np.hypot(*(ref[ticks[i]] - ref[ticks[p]])))
+            dv = float(np.hypot(*(vel[ticks[i]] - vel[ticks[p]])))
+            gap = moved + fan.turn(members[p], dv)
+            if np.any(members[i] != members[p]) or gap > sweeps_module.FAN_GAP:
+                expect.append(i)
+        picked = sweeps_module._pick_fan_states(
+            ref[ticks],
+            vel[ticks],
+            members.astype(np.int64),
+            fan.radius,
+            np.maximum(fan.speeds - fan.tolerance, 1e-9),
+            sweeps_module.FAN_GAP,
+        )
+        np.testing.assert_array_equal(picked, expect)
+        centres, radii = fan.samples_along(ref[ticks[picked]], vel[ticks[picked]], members[picked])
+        one = [fan.samples(ref[ticks[i]], vel[ticks[i]]) for i in picked]
+        assert all(o is not None for o in one)
+        np.testing.assert_allclose(centres, np.concatenate([o[0] for o in one]), atol=1e-12)
+        np.testing.assert_array_equal(radii, np.concatenate([o[1] for o in one]))
+        checked += len(picked)
+    assert checked > 30

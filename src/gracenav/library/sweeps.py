@@ -223,6 +223,39 @@ class PushFan:
         slowest = np.maximum(self.speeds[members] - self.tolerance[members], 1e-9)
         return float(np.max(np.minimum(2.0 * r, r * dv / slowest)))
 
+    def samples_along(
+        self, positions: FloatArray, velocities: FloatArray, members: IntArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """:meth:`samples` of several states at once, concatenated in order: state by
+        state, direction by direction, of flat-output ``positions`` (n, 2) moving at
+        ``velocities`` (n, 2) whose catches ``members`` (n, :data:`FAN_DIRECTIONS`)
+        (:meth:`members`) are known."""
+        a = [2.0 * math.pi * k / FAN_DIRECTIONS for k in range(FAN_DIRECTIONS)]
+        push = self.speed_change * np.array([[math.cos(v), math.sin(v)] for v in a])
+        w = velocities[:, None, :] + push  # (n, K, 2), as samples() forms them
+        speed = np.hypot(w[..., 0], w[..., 1])
+        h = np.where(speed > 1e-9, np.arctan2(w[..., 1], w[..., 0]), 0.0)
+        c, s = np.cos(h).ravel(), np.sin(h).ravel()
+        j = members.ravel()
+        sizes = np.array([p.shape[0] for p in self.paths], dtype=np.int64)[j]
+        start = np.cumsum(sizes) - sizes
+        centres = np.empty((int(sizes.sum()), 2))
+        radii = np.empty(int(sizes.sum()))
+        origin = np.repeat(positions, FAN_DIRECTIONS, axis=0)
+        for speed_index in np.unique(j):
+            blocks = np.flatnonzero(j == speed_index)
+            path = self.paths[speed_index]
+            n = path.shape[0]
+            # path @ [[c, s], [-s, c]] for every block of this speed at once
+            px, py = path[:, 0], path[:, 1]
+            cx = px[None, :] * c[blocks, None] - py[None, :] * s[blocks, None]
+            cy = px[None, :] * s[blocks, None] + py[None, :] * c[blocks, None]
+            rows = (start[blocks, None] + np.arange(n)[None, :]).ravel()
+            centres[rows, 0] = (origin[blocks, 0, None] + cx).ravel()
+            centres[rows, 1] = (origin[blocks, 1, None] + cy).ravel()
+            radii[rows] = np.tile(self.reaches[speed_index], blocks.size)
+        return centres, radii
+
     def samples(
         self, position: FloatArray, velocity: FloatArray
     ) -> tuple[FloatArray, FloatArray] | None:
@@ -420,20 +453,51 @@ def _with_fan(
     )
     step_dv = float(np.max(np.hypot(*np.diff(vel[fast[0] : fast[-1] + 1], axis=0).T), initial=0.0))
     grow = FAN_GAP + span * step_move + fan.turn(np.unique(members), span * step_dv)
-    picked = [0]
-    for i in range(1, ticks.size):
-        p = picked[-1]
-        moved = float(np.hypot(*(ref[ticks[i]] - ref[ticks[p]])))
-        dv = float(np.hypot(*(vel[ticks[i]] - vel[ticks[p]])))
-        if np.any(members[i] != members[p]) or moved + fan.turn(members[p], dv) > FAN_GAP:
-            picked.append(i)
-    more_o, more_r = [offsets], [reach]
-    for i in picked:
-        got = fan.samples(ref[ticks[i]], vel[ticks[i]])
-        assert got is not None  # its members were found above
-        more_o.append(got[0])
-        more_r.append(got[1] + grow)
-    return np.concatenate(more_o), np.concatenate(more_r)
+    picked = _pick_fan_states(
+        np.ascontiguousarray(ref[ticks]),
+        np.ascontiguousarray(vel[ticks]),
+        np.ascontiguousarray(members, dtype=np.int64),
+        fan.radius,
+        np.maximum(fan.speeds - fan.tolerance, 1e-9),
+        FAN_GAP,
+    )
+    centres, radii = fan.samples_along(ref[ticks[picked]], vel[ticks[picked]], members[picked])
+    return np.concatenate([offsets, centres]), np.concatenate([reach, radii + grow])
+
+
+@njit(cache=True)
+def _pick_fan_states(
+    ref: FloatArray,
+    vel: FloatArray,
+    members: IntArray,
+    radius: FloatArray,
+    slowest: FloatArray,
+    gap: float,
+) -> IntArray:
+    """The walk of :func:`_with_fan`: indices of the states (rows of ``ref``, ``vel``,
+    ``members``) checked, the first and then each whose catches differ from the last
+    checked one's or whose discs may have moved more than ``gap`` from them (the flat
+    output's displacement plus :meth:`PushFan.turn`, with the catches' ``radius`` and
+    ``slowest`` speeds)."""
+    n, k = members.shape
+    picked = np.empty(n, dtype=np.int64)
+    picked[0] = 0
+    count = 1
+    for i in range(1, n):
+        p = picked[count - 1]
+        moved = np.hypot(ref[i, 0] - ref[p, 0], ref[i, 1] - ref[p, 1])
+        dv = np.hypot(vel[i, 0] - vel[p, 0], vel[i, 1] - vel[p, 1])
+        differ = False
+        turn = 0.0
+        for m in range(k):
+            if members[i, m] != members[p, m]:
+                differ = True
+            r = radius[members[p, m]]
+            turn = max(turn, min(2.0 * r, r * dv / slowest[members[p, m]]))
+        if differ or moved + turn > gap:
+            picked[count] = i
+            count += 1
+    return picked[:count]
 
 
 def _check_sweeps(

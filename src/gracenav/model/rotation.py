@@ -40,7 +40,21 @@ def rotate_pairs(a: ArrayLike, k: int) -> FloatArray:
     """
     arr = np.asarray(a, dtype=np.float64)
     pairs = arr.reshape(*arr.shape[:-1], arr.shape[-1] // 2, 2)
-    out: FloatArray = (pairs @ quarter_turn(k).T).reshape(arr.shape)
+    x, y = pairs[..., 0], pairs[..., 1]
+    turned = np.empty_like(pairs)
+    k = int(k) % 4  # (x, y) -> (c x - s y, s x + c y) with c, s in {0, ±1}: swaps and signs
+    if k == 0:
+        turned[...] = pairs
+    elif k == 1:
+        np.negative(y, out=turned[..., 0])
+        turned[..., 1] = x
+    elif k == 2:
+        np.negative(x, out=turned[..., 0])
+        np.negative(y, out=turned[..., 1])
+    else:
+        turned[..., 0] = y
+        np.negative(x, out=turned[..., 1])
+    out: FloatArray = turned.reshape(arr.shape)
     return out
 
 
