@@ -157,6 +157,18 @@ def test_rotate_pairs() -> None:
     np.testing.assert_array_equal(rotate_pairs(x, 1), [-1, 0, -3, 2, -5, 4, -7, 6])
     np.testing.assert_array_equal(rotate_pairs(x, 4), x)
     np.testing.assert_array_equal(rotate_pairs(rotate_pairs(x, 3), 1), x)
+    rng = np.random.default_rng(3)
+    states = rng.normal(size=(5, 8))
+    for k in range(-1, 6):  # the exact swaps and signs equal the rotation matrix's product
+        turn = np.array([[np.cos(k * np.pi / 2), -np.sin(k * np.pi / 2)]])
+        turn = np.round(np.vstack([turn, [[-turn[0, 1], turn[0, 0]]]]))
+        expect = (states.reshape(5, 4, 2) @ turn.T).reshape(5, 8)
+        np.testing.assert_array_equal(rotate_pairs(states, k), expect)
+        into = np.empty((5, 8))
+        assert rotate_pairs(states, k, out=into) is into
+        np.testing.assert_array_equal(into, expect)
+    with pytest.raises(ValueError, match="shape"):
+        rotate_pairs(states, 1, out=np.empty((5, 6)))
 
 
 def test_graceful_switches_have_no_torque_jump(palette) -> None:

@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 
 from gracenav.errors import ConfigError
 from gracenav.library.types import ORIENTATIONS, BoolArray, FloatArray, IntArray, _rotate
+from gracenav.model.rotation import rotate_pairs
 from gracenav.palette import Palette
 from gracenav.policies import MotionPolicy
 from gracenav.policies.catches import PUSHED, lean_class_of
@@ -678,9 +679,14 @@ def _check_sweeps_kernel(
 
 def _sweep_tables(sweeps: list[_Sweep]) -> dict[str, NDArray[Any]]:
     """Concatenate the sweeps of every type (rotated) into flat tables."""
-    offs, reach, gc, gr, gsf, gsz, total = [], [], [], [], [], [], []
+    gc, gr, gsf, gsz, total = [], [], [], [], []
     sc, sr, sgf, ssz, tsf, tsc = [], [], [], [], [], []
     n_samples = n_groups = n_supers = 0
+    # The samples (most of the tables: millions with a design push) are written in
+    # place, rotated, rather than rotated into copies and concatenated.
+    size = ORIENTATIONS * sum(sw.offsets.shape[0] for sw in sweeps)
+    sample_offset = np.empty((size, 2))
+    sample_reach = np.empty(size)
     for sw in sweeps:
         for k in range(ORIENTATIONS):
             sc.append(_rotate(sw.super_centre, k))
@@ -690,8 +696,9 @@ def _sweep_tables(sweeps: list[_Sweep]) -> dict[str, NDArray[Any]]:
             tsf.append(n_supers)
             tsc.append(sw.super_first.size)
             n_supers += sw.super_first.size
-            offs.append(_rotate(sw.offsets, k))
-            reach.append(sw.reach)
+            rows = slice(n_samples, n_samples + sw.offsets.shape[0])
+            rotate_pairs(sw.offsets, k, out=sample_offset[rows])
+            sample_reach[rows] = sw.reach
             gc.append(_rotate(sw.group_centre, k))
             gr.append(sw.group_reach)
             gsf.append(sw.group_first + n_samples)
@@ -700,8 +707,8 @@ def _sweep_tables(sweeps: list[_Sweep]) -> dict[str, NDArray[Any]]:
             n_samples += sw.offsets.shape[0]
             n_groups += sw.group_first.size
     return {
-        "sample_offset": np.concatenate(offs),
-        "sample_reach": np.concatenate(reach),
+        "sample_offset": sample_offset,
+        "sample_reach": sample_reach,
         # What the start point's own clearance must exceed (the first sample leads it by
         # half the allowance times the start velocity; clearance is 1-Lipschitz).
         "sample_first_reach": np.array(

@@ -31,17 +31,21 @@ QUARTER_TURNS: FloatArray = np.stack([quarter_turn(k) for k in range(4)])
 QUARTER_TURNS.setflags(write=False)
 
 
-def rotate_pairs(a: ArrayLike, k: int) -> FloatArray:
+def rotate_pairs(a: ArrayLike, k: int, *, out: FloatArray | None = None) -> FloatArray:
     """Rotate every consecutive (x, y) pair of the last axis of ``a`` by k·90° (exact).
 
     Model states [θ_x, θ_y, φ_x, φ_y, θ̇_x, θ̇_y, φ̇_x, φ̇_y], torques [τ_x, τ_y] and
     position states [x, y, ẋ, ẏ, (ẍ, ÿ)] all consist of such pairs; (..., 2) vectors
-    are one pair.
+    are one pair. ``out``: an array of ``a``'s shape to write the result into (not
+    ``a`` itself).
     """
     arr = np.asarray(a, dtype=np.float64)
+    result = np.empty_like(arr) if out is None else out
+    if result.shape != arr.shape:
+        raise ValueError(f"out has shape {result.shape}, not the input's {arr.shape}")
     pairs = arr.reshape(*arr.shape[:-1], arr.shape[-1] // 2, 2)
+    turned = result.reshape(pairs.shape)
     x, y = pairs[..., 0], pairs[..., 1]
-    turned = np.empty_like(pairs)
     k = int(k) % 4  # (x, y) -> (c x - s y, s x + c y) with c, s in {0, ±1}: swaps and signs
     if k == 0:
         turned[...] = pairs
@@ -54,8 +58,7 @@ def rotate_pairs(a: ArrayLike, k: int) -> FloatArray:
     else:
         turned[..., 0] = y
         np.negative(x, out=turned[..., 1])
-    out: FloatArray = turned.reshape(arr.shape)
-    return out
+    return result
 
 
 def rotate_pairs_by(a: ArrayLike, angle: float) -> FloatArray:
