@@ -8,11 +8,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from reverify import assert_holds_from_unchosen_points
 
 from gracenav.library import InstantiatedPolicy, build_library
 from gracenav.planning import plan_tree
 from gracenav.planning.graph import build_graph, gracefully_prepares
-from gracenav.policies import fine_label, run_policy, verify_placements
+from gracenav.policies import fine_label
 from gracenav.world import load_map
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -62,16 +63,9 @@ def test_a_fine_copy_holds_from_states_its_verification_did_not_choose(palette) 
     """Re-verified from another boundary set, and run from random interior states of S,
     on the 3D model."""
     pol = palette[fine_label("cruise_x_to_cruise_y_1_1", 0.25)]
-    rep = verify_placements(pol, dataclasses.replace(palette.options, boundary_points=101))
-    assert rep.passed, rep
-    rng = np.random.default_rng(11)
-    u = rng.normal(size=(24, 4))
-    u *= (rng.uniform(size=(24, 1)) ** 0.25) / np.linalg.norm(u, axis=1, keepdims=True)
-    ell = np.linalg.cholesky(np.linalg.inv(pol.start_domain.shape_matrix))
-    for p0 in pol.start_domain.center + u @ ell.T:
-        res = run_policy(pol, p0)
-        assert res.max_domain_value <= 1.0
-        assert pol.goal_domain.value(res.position_state[-1]) <= 1.0
+    assert_holds_from_unchosen_points(
+        pol, palette.options, boundary_points=101, interior=24, seed=11
+    )
 
 
 def test_levels_chain_down_one_at_a_time_and_up_at_once(palette) -> None:

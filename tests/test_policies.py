@@ -7,6 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 import scipy.linalg
+from reverify import assert_holds_from_unchosen_points
 
 from gracenav import BallbotParams, ConfigError
 from gracenav.control import design_gains, planar_to_position_coordinates
@@ -16,9 +17,7 @@ from gracenav.policies import (
     VerificationOptions,
     domain_shape,
     rotate_pairs,
-    run_policy,
     switch_torque_jumps,
-    verify_placements,
     verify_policy,
 )
 from gracenav.policies.domains import correlated_shape
@@ -102,16 +101,9 @@ def test_largest_capture_domain_holds_from_points_the_verifier_never_used(palett
     """Re-verify the largest capture domain from another boundary set and from random
     interior states on the 3D model (the sizing saw 64 boundary points only)."""
     capture = max((p for p in palette if p.primitive.name == "capture"), key=lambda p: p.scale)
-    rep = verify_placements(capture, dataclasses.replace(palette.options, boundary_points=101))
-    assert rep.passed, rep
-    rng = np.random.default_rng(7)
-    u = rng.normal(size=(40, 4))
-    u *= (rng.uniform(size=(40, 1)) ** 0.25) / np.linalg.norm(u, axis=1, keepdims=True)
-    ell = np.linalg.cholesky(np.linalg.inv(capture.start_domain.shape_matrix))
-    for p0 in capture.start_domain.center + u @ ell.T:
-        res = run_policy(capture, p0)
-        assert res.max_domain_value <= 1.0
-        assert capture.goal_domain.value(res.position_state[-1]) <= 1.0
+    assert_holds_from_unchosen_points(
+        capture, palette.options, boundary_points=101, interior=40, seed=7
+    )
 
 
 @pytest.mark.parametrize("name", ["rest", "cruise_xy", "cruise_x_to_cruise_y_1_1"])
@@ -205,14 +197,6 @@ def test_the_speed_palettes_fast_policies_hold_from_points_the_verifier_never_us
     from gracenav.palette import load_palette
 
     pal = load_palette("speed")
-    pol = pal[name]
-    rep = verify_placements(pol, dataclasses.replace(pal.options, boundary_points=67))
-    assert rep.passed, rep
-    rng = np.random.default_rng(11)
-    u = rng.normal(size=(12, 4))
-    u *= (rng.uniform(size=(12, 1)) ** 0.25) / np.linalg.norm(u, axis=1, keepdims=True)
-    ell = np.linalg.cholesky(np.linalg.inv(pol.start_domain.shape_matrix))
-    for p0 in pol.start_domain.center + u @ ell.T:
-        res = run_policy(pol, p0)
-        assert res.max_domain_value <= 1.0
-        assert pol.goal_domain.value(res.position_state[-1]) <= 1.0
+    assert_holds_from_unchosen_points(
+        pal[name], pal.options, boundary_points=67, interior=12, seed=11
+    )
