@@ -55,3 +55,42 @@ def test_compiled_check_is_the_sample_by_sample_check(palette, monkeypatch, push
     order = np.argsort(pair_point * n_types + pair_type)  # neighbours in a row
     again = _check_sweeps(world, points, pair_type[order], pair_point[order], tables, FOOT)
     np.testing.assert_array_equal(again, want[order])
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_clearance_floor_never_exceeds_the_clearance_and_is_near_it(seed: int) -> None:
+    """:func:`_clearance_floor` bounds the clearance from below in every cell it covers
+    (inside, on obstacles, on the edge and outside the map), so a disc it calls clear
+    is clear; and it is tight enough to decide most discs: within one and a half cells
+    of the clearance wherever the point is inside the map."""
+    from gracenav.library.sweeps import _clearance_floor, _disc_clear
+
+    world = forest_map(4.0, 8.0, density=0.03, seed=seed)
+    rng = np.random.default_rng(seed)
+    (x0, y0), (x1, y1) = world.bounds
+    pts = rng.uniform([x0 - 0.3, y0 - 0.3], [x1 + 0.3, y1 + 0.3], size=(20000, 2))
+    _, nearest = world._clearance_data()
+    grid = (
+        nearest,
+        np.ascontiguousarray(world.occupied),
+        float(world.origin[0]),
+        float(world.origin[1]),
+        float(world.resolution),
+        float(x0),
+        float(y0),
+        float(x1),
+        float(y1),
+    )
+    floor = _clearance_floor(*grid)
+    want = world.clearance(pts)
+    ky = (np.floor((pts[:, 1] - grid[3]) / grid[4] - 0.5) + 1).astype(int)
+    kx = (np.floor((pts[:, 0] - grid[2]) / grid[4] - 0.5) + 1).astype(int)
+    inside = (ky >= 0) & (ky < floor.shape[0]) & (kx >= 0) & (kx < floor.shape[1])
+    bound = floor[ky[inside], kx[inside]]
+    assert np.all(bound <= want[inside])
+    assert np.all(want[inside] - bound <= 1.5 * world.resolution)
+    assert np.any(want == 0.0) and np.mean(bound > 0.1) > 0.3
+    # The disc test with the floor gives the clearance's verdict at every point.
+    need = rng.uniform(0.0, 0.6, size=pts.shape[0])
+    got = np.array([_disc_clear(x, y, n, floor, grid) for (x, y), n in zip(pts, need, strict=True)])
+    np.testing.assert_array_equal(got, want >= need)

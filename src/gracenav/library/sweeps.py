@@ -564,6 +564,7 @@ def _check_sweeps(
         hint,
         float(footprint),
         grid,
+        _clearance_floor(*grid),
     )
     return valid
 
@@ -611,17 +612,88 @@ def _clearance_at(
     return max(min(best, edge), 0.0)
 
 
+#: What :func:`_clearance_floor` takes off its bounds (m): far more than the rounding of
+#: the clearance's own arithmetic (about 1e-15 m), so a bound never exceeds a value.
+_FLOOR_SLACK = 1e-9
+
+
+@njit(cache=True)
+def _clearance_floor(
+    nearest: Any,
+    occupied: Any,
+    ox: float,
+    oy: float,
+    res: float,
+    xmin: float,
+    ymin: float,
+    xmax: float,
+    ymax: float,
+) -> FloatArray:
+    """A lower bound on :func:`_clearance_at` over each cell of the half-cell-shifted
+    grid whose four surrounding cell centres (and so whose four nearest occupied cells)
+    it shares, shape (ny + 1, nx + 1), indexed as :func:`_clearance_at` indexes
+    ``nearest`` (row ``floor((y - oy) / res - 0.5) + 1``): the distance from that
+    rectangle to the nearest of the four occupied cells' squares or to the map edge,
+    less :data:`_FLOOR_SLACK`; 0 where the rectangle reaches outside the grid."""
+    ny, nx = occupied.shape
+    out = np.empty((ny + 1, nx + 1))
+    for ky in range(ny + 1):
+        ry0 = oy + (ky - 0.5) * res
+        ry1 = oy + (ky + 0.5) * res
+        for kx in range(nx + 1):
+            rx0 = ox + (kx - 0.5) * res
+            rx1 = ox + (kx + 0.5) * res
+            if ky == 0 or kx == 0 or ky == ny or kx == nx:
+                out[ky, kx] = 0.0  # part of the rectangle lies off the grid: clearance 0
+                continue
+            best = np.inf
+            for k in range(4):
+                jy = nearest[0, ky + (k >> 1), kx + (k & 1)] - 1
+                jx = nearest[1, ky + (k >> 1), kx + (k & 1)] - 1
+                bx0 = ox + jx * res
+                by0 = oy + jy * res
+                gx = max(max(bx0 - rx1, rx0 - (bx0 + res)), 0.0)
+                gy = max(max(by0 - ry1, ry0 - (by0 + res)), 0.0)
+                best = min(best, np.hypot(gx, gy))
+            edge = min(min(rx0 - xmin, xmax - rx1), min(ry0 - ymin, ymax - ry1))
+            out[ky, kx] = max(min(best, edge), 0.0) - _FLOOR_SLACK
+    return out
+
+
 @njit(cache=True, nogil=True)
-def _group_clear(g: int, qx: float, qy: float, footprint: float, groups: Any, grid: Any) -> bool:
+def _disc_clear(px: float, py: float, need: float, floor: Any, grid: Any) -> bool:
+    """Whether :func:`_clearance_at` at (px, py) is at least ``need``: decided by the
+    point's cell of :func:`_clearance_floor` when that bound reaches ``need`` (the same
+    verdict, without the four nearest cells), else by the clearance itself."""
+    oy = grid[3]
+    ox = grid[2]
+    res = grid[4]
+    ky = np.floor((py - oy) / res - 0.5) + 1
+    kx = np.floor((px - ox) / res - 0.5) + 1
+    if ky >= 0 and ky < floor.shape[0] and kx >= 0 and kx < floor.shape[1]:
+        if floor[int(ky), int(kx)] >= need:
+            return True
+    return _clearance_at(px, py, *grid) >= need
+
+
+@njit(cache=True, nogil=True)
+def _group_clear(
+    g: int, qx: float, qy: float, footprint: float, groups: Any, grid: Any, floor: Any
+) -> bool:
     """Whether group ``g`` of the swept samples is clear at (qx, qy): its disc, or else
     every sample (``groups``: the group and sample tables, ``grid``: the map's, as
-    :func:`_check_sweeps` packs them)."""
+    :func:`_check_sweeps` packs them; ``floor``: :func:`_clearance_floor`)."""
     centre, reach, sample_first, size, sample_offset, sample_reach = groups
-    if _clearance_at(qx + centre[g, 0], qy + centre[g, 1], *grid) >= footprint + reach[g]:
+    if _disc_clear(qx + centre[g, 0], qy + centre[g, 1], footprint + reach[g], floor, grid):
         return True
     for k in range(sample_first[g], sample_first[g] + size[g]):
-        c = _clearance_at(qx + sample_offset[k, 0], qy + sample_offset[k, 1], *grid)
-        if c < footprint + sample_reach[k]:
+        if not _disc_clear(
+            qx + sample_offset[k, 0],
+            qy + sample_offset[k, 1],
+            footprint + sample_reach[k],
+            floor,
+            grid,
+        ):
             return False
     return True
 
@@ -637,13 +709,15 @@ def _check_sweeps_kernel(
     hint: Any,
     footprint: float,
     grid: Any,
+    floor: Any,
 ) -> None:
     """Mark the pairs whose swept D' is not clear: a pair is valid iff in every group
     of groups either its bounding disc or, in every group, the group's disc or every
     sample is clear (see :func:`build_library`). ``hint[t]``: the group at which type
     t failed last (-1: none), checked first, behind its group of groups' disc as in the
     full check; threads write it without order, which changes only how soon a failing
-    pair is found, never the verdict."""
+    pair is found, never the verdict. ``floor``: :func:`_clearance_floor`, which decides
+    a disc at one look-up when the map leaves it room to spare."""
     type_first, type_count, centre, reach, group_first, size = supers
     for a in prange(pair_type.size):  # independent pairs: the hints are only hints
         t = pair_type[a]
@@ -657,20 +731,19 @@ def _check_sweeps_kernel(
             # group's disc is not clear, so the verdict never depends on the hint.
             s0 = type_first[t]
             sh = s0 + (h - group_first[s0]) // _GROUP
-            near = _clearance_at(qx + centre[sh, 0], qy + centre[sh, 1], *grid) < (
-                footprint + reach[sh]
+            near = not _disc_clear(
+                qx + centre[sh, 0], qy + centre[sh, 1], footprint + reach[sh], floor, grid
             )
-            bad = near and not _group_clear(h, qx, qy, footprint, groups, grid)
+            bad = near and not _group_clear(h, qx, qy, footprint, groups, grid, floor)
         for sg in range(type_first[t], type_first[t] + type_count[t]):
             if bad:
                 break
-            if (
-                _clearance_at(qx + centre[sg, 0], qy + centre[sg, 1], *grid)
-                >= footprint + reach[sg]
+            if _disc_clear(
+                qx + centre[sg, 0], qy + centre[sg, 1], footprint + reach[sg], floor, grid
             ):
                 continue
             for g in range(group_first[sg], group_first[sg] + size[sg]):
-                if g != h and not _group_clear(g, qx, qy, footprint, groups, grid):
+                if g != h and not _group_clear(g, qx, qy, footprint, groups, grid, floor):
                     bad = True
                     hint[t] = g
                     break
