@@ -28,6 +28,9 @@ def test_simulate_balance_writes_csv_and_png(tmp_path, capsys) -> None:
         ["simulate", "walk", "--out", "x"],
         ["plot", "domain", "no_such_policy", "--out", "x.png"],
         ["palette", "show", "--file", "/nonexistent.npz"],
+        # Not a shipped palette's name, nor a file: refused before ROS starts.
+        ["palette", "show", "--file", "fast"],
+        ["ros", "navigate", "--palette", "fast"],
         # Limits refused before anything is planned: not ascending from 0.5 m/s, a
         # reference speed cap below the top speed.
         ["palette", "build", "--cruise-speeds", "0.4", "--out", "x.npz"],

@@ -12,7 +12,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from gracenav.cli._common import number
+from gracenav.cli._common import add_palette_argument, number
 
 __all__ = ["register"]
 
@@ -52,6 +52,7 @@ def register(sub: Any) -> None:
     )
     n.add_argument("--map", type=Path, default=None, help="map or scenario file (else /map)")
     n.add_argument("--goal", type=float, nargs=2, metavar=("X", "Y"), default=None)
+    add_palette_argument(n)
     n.add_argument("--log", type=Path, default=None, metavar="FILE.mcap", help="record the run")
     n.add_argument(
         "--exit-when-done",
@@ -127,6 +128,11 @@ def run_navigate(args: argparse.Namespace) -> int:
         overrides["map_file"] = str(args.map)
     if args.goal is not None:
         overrides["goal"] = [float(v) for v in args.goal]
+    if args.palette is not None:
+        from gracenav.palette import load_palette
+
+        load_palette(args.palette)  # a bad file or name: one line, before ROS starts
+        overrides["palette"] = str(args.palette)
     if args.log is not None:
         overrides["log_file"] = str(args.log)
     if args.exit_when_done:

@@ -42,6 +42,7 @@ __all__ = ["PARAMETERS", "run_navigator"]
 #: The node's ROS parameters and their defaults (a YAML ``--params-file`` or ``-p``).
 PARAMETERS: dict[str, Any] = {
     "map_file": "",
+    "palette": "",  # a palette file or a shipped palette's name; "": the default
     "goal": [0.0],  # [x, y] (m); [0.0] (one number) for none
     "route": [0.0],  # [x, y, x, y, ...] (m) of a surveillance route; [0.0] for none
     "route_speed": 0.0,
@@ -117,7 +118,8 @@ class _Navigator:
             from gracenav.scenarios.mcap_log import McapRunLog
 
             recorder = McapRunLog(par["log_file"])
-        self.core = NavigatorCore(load_palette(), self.options, log=self._log, recorder=recorder)
+        palette = load_palette(str(par["palette"]) or None)
+        self.core = NavigatorCore(palette, self.options, log=self._log, recorder=recorder)
         self.radius = self.core.radius
         self._Wrench, self._Path, self._String = WrenchStamped, PathMsg, String
         self._MarkerArray = MarkerArray
