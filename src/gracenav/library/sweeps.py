@@ -227,13 +227,15 @@ class PushFan:
     def samples_along(
         self, positions: FloatArray, velocities: FloatArray, members: IntArray
     ) -> tuple[FloatArray, FloatArray]:
-        """:meth:`samples` of several states at once, concatenated in order: state by
-        state, direction by direction, of flat-output ``positions`` (n, 2) moving at
-        ``velocities`` (n, 2) whose catches ``members`` (n, :data:`FAN_DIRECTIONS`)
-        (:meth:`members`) are known."""
+        """Discs (centres (K, 2), radii (K,)) of the catches of every state the design
+        push leaves at flat-output ``positions`` (n, 2) moving at ``velocities`` (n, 2),
+        pushed in each of :data:`FAN_DIRECTIONS` directions, whose catches ``members``
+        (n, :data:`FAN_DIRECTIONS`) (:meth:`members`) are known: each catch's path
+        turned to the pushed velocity's heading and moved to the state's position,
+        state by state, direction by direction."""
         a = [2.0 * math.pi * k / FAN_DIRECTIONS for k in range(FAN_DIRECTIONS)]
         push = self.speed_change * np.array([[math.cos(v), math.sin(v)] for v in a])
-        w = velocities[:, None, :] + push  # (n, K, 2), as samples() forms them
+        w = velocities[:, None, :] + push  # (n, K, 2)
         speed = np.hypot(w[..., 0], w[..., 1])
         h = np.where(speed > 1e-9, np.arctan2(w[..., 1], w[..., 0]), 0.0)
         c, s = np.cos(h).ravel(), np.sin(h).ravel()
@@ -256,27 +258,6 @@ class PushFan:
             centres[rows, 1] = (origin[blocks, 1, None] + cy).ravel()
             radii[rows] = np.tile(self.reaches[speed_index], blocks.size)
         return centres, radii
-
-    def samples(
-        self, position: FloatArray, velocity: FloatArray
-    ) -> tuple[FloatArray, FloatArray] | None:
-        """Discs (centres (K, 2), radii (K,)) of the catches of every state the design
-        push leaves at flat-output ``position`` (2,) moving at ``velocity`` (2,), pushed
-        in each of :data:`FAN_DIRECTIONS` directions; None when one of these states is
-        faster or slower than every pushed catch's S holds (no verified catch)."""
-        centres, radii = [], []
-        for k in range(FAN_DIRECTIONS):
-            a = 2.0 * math.pi * k / FAN_DIRECTIONS
-            w = velocity + self.speed_change * np.array([math.cos(a), math.sin(a)])
-            speed = float(np.hypot(*w))
-            j = int(np.argmin(np.abs(self.speeds - speed)))
-            if abs(float(self.speeds[j]) - speed) > float(self.tolerance[j]):
-                return None
-            h = math.atan2(w[1], w[0]) if speed > 1e-9 else 0.0
-            c, s = math.cos(h), math.sin(h)
-            centres.append(position + self.paths[j] @ np.array([[c, s], [-s, c]]))
-            radii.append(self.reaches[j])
-        return np.concatenate(centres), np.concatenate(radii)
 
 
 def flat_speed_change(params: BallbotParams, impulse: float) -> float:
@@ -380,7 +361,7 @@ def _sweep(
     reach of D' around each, plus half the allowance ``speed_clearance`` (s) times the
     reference speed (see :func:`build_library`). ``samples``: :func:`sweep_samples`
     of the policy's primitive with that lead, if already computed. With ``fan``, the
-    discs of the catches of the design push (:meth:`PushFan.samples`) where the flat
+    discs of the catches of the design push (:meth:`PushFan.samples_along`) where the flat
     output is faster than ``fan.above`` are checked too (:func:`_with_fan`); a policy
     with a pushed state that no catch holds gets an infinite reach (it is placed
     nowhere)."""
