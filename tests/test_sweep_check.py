@@ -63,25 +63,14 @@ def test_the_clearance_floor_never_exceeds_the_clearance_and_is_near_it(seed: in
     (inside, on obstacles, on the edge and outside the map), so a disc it calls clear
     is clear; and it is tight enough to decide most discs: within one and a half cells
     of the clearance wherever the point is inside the map."""
-    from gracenav.library.sweeps import _clearance_floor, _disc_clear
+    from gracenav.library.sweeps import _disc_clear, _map_grid
 
     world = forest_map(4.0, 8.0, density=0.03, seed=seed)
     rng = np.random.default_rng(seed)
     (x0, y0), (x1, y1) = world.bounds
     pts = rng.uniform([x0 - 0.3, y0 - 0.3], [x1 + 0.3, y1 + 0.3], size=(20000, 2))
-    _, nearest = world._clearance_data()
-    grid = (
-        nearest,
-        np.ascontiguousarray(world.occupied),
-        float(world.origin[0]),
-        float(world.origin[1]),
-        float(world.resolution),
-        float(x0),
-        float(y0),
-        float(x1),
-        float(y1),
-    )
-    floor = _clearance_floor(*grid)
+    grid, floor = _map_grid(world)
+    assert _map_grid(world)[1] is floor  # computed once per map
     want = world.clearance(pts)
     ky = (np.floor((pts[:, 1] - grid[3]) / grid[4] - 0.5) + 1).astype(int)
     kx = (np.floor((pts[:, 0] - grid[2]) / grid[4] - 0.5) + 1).astype(int)

@@ -499,20 +499,8 @@ def _check_sweeps(
     valid = np.ones(pair_type.size, dtype=bool)
     if pair_type.size == 0:
         return valid
-    _, nearest = world_map._clearance_data()
-    (x0, y0), (x1, y1) = world_map.bounds
+    grid, floor = _map_grid(world_map)
     hint = np.full(tables["type_super_first"].size, -1, dtype=np.int64)
-    grid = (
-        nearest,
-        np.ascontiguousarray(world_map.occupied, dtype=np.bool_),
-        float(world_map.origin[0]),
-        float(world_map.origin[1]),
-        float(world_map.resolution),
-        float(x0),
-        float(y0),
-        float(x1),
-        float(y1),
-    )
     supers = tuple(
         tables[k]
         for k in (
@@ -545,9 +533,35 @@ def _check_sweeps(
         hint,
         float(footprint),
         grid,
-        _clearance_floor(*grid),
+        floor,
     )
     return valid
+
+
+def _map_grid(world_map: WorldMap) -> tuple[tuple[Any, ...], FloatArray]:
+    """The map as the compiled check reads it: the grid (nearest occupied cells,
+    occupancy, origin, resolution and bounds: the arguments of :func:`_clearance_at`
+    after the point) and its :func:`_clearance_floor`, computed once per map and kept
+    with its clearance data (8 bytes a cell, counted in the memory budget's
+    ``MAP_CELL_BYTES``)."""
+    _, nearest = world_map._clearance_data()
+    (x0, y0), (x1, y1) = world_map.bounds
+    grid = (
+        nearest,
+        np.ascontiguousarray(world_map.occupied, dtype=np.bool_),
+        float(world_map.origin[0]),
+        float(world_map.origin[1]),
+        float(world_map.resolution),
+        float(x0),
+        float(y0),
+        float(x1),
+        float(y1),
+    )
+    floor = world_map._cache.get("clearance_floor")
+    if floor is None:
+        floor = world_map._cache["clearance_floor"] = _clearance_floor(*grid)
+        floor.setflags(write=False)
+    return grid, floor
 
 
 @njit(cache=True, nogil=True)

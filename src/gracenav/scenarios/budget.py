@@ -69,8 +69,9 @@ OUTPUT_BYTES = 224 * 2**20
 """Writing the results: figures and animation (measured +220 MiB over the first control
 command on the warehouse and the office)."""
 
-MAP_CELL_BYTES = 20
-"""Per map cell: occupancy grid, clearance field and its distance transform."""
+MAP_CELL_BYTES = 28
+"""Per map cell: occupancy grid, clearance field and its distance transform, and the
+sweep check's lower bound on the clearance (8)."""
 
 RUN_POINT_BYTES = 256
 """Per lattice point of the last pass: coordinates, clearance and a flag per scale group
