@@ -592,6 +592,28 @@ def _clearance_at(
         return 0.0
     ky = int(np.floor((py - oy) / res - 0.5)) + 1
     kx = int(np.floor((px - ox) / res - 0.5)) + 1
+    best = _nearest_squares(nearest, ky, kx, ox, oy, res, px, px, py, py)
+    edge = min(min(px - xmin, xmax - px), min(py - ymin, ymax - py))
+    return max(min(best, edge), 0.0)
+
+
+@njit(cache=True, nogil=True)
+def _nearest_squares(
+    nearest: Any,
+    ky: int,
+    kx: int,
+    ox: float,
+    oy: float,
+    res: float,
+    x0: float,
+    x1: float,
+    y0: float,
+    y1: float,
+) -> float:
+    """Distance from the rectangle [x0, x1] × [y0, y1] (a point when x0 = x1, y0 = y1)
+    to the nearest of the occupied squares nearest to the four cell centres around
+    index (ky, kx) of ``nearest`` (with a point, the operations of
+    :meth:`gracenav.world.WorldMap.clearance`)."""
     best = np.inf
     for k in range(4):
         dyk = k >> 1
@@ -600,11 +622,10 @@ def _clearance_at(
         jx = nearest[1, ky + dyk, kx + dxk] - 1
         bx0 = ox + jx * res
         by0 = oy + jy * res
-        dx = max(max(bx0 - px, px - (bx0 + res)), 0.0)
-        dy = max(max(by0 - py, py - (by0 + res)), 0.0)
+        dx = max(max(bx0 - x1, x0 - (bx0 + res)), 0.0)
+        dy = max(max(by0 - y1, y0 - (by0 + res)), 0.0)
         best = min(best, np.hypot(dx, dy))
-    edge = min(min(px - xmin, xmax - px), min(py - ymin, ymax - py))
-    return max(min(best, edge), 0.0)
+    return best
 
 
 #: What :func:`_clearance_floor` takes off its bounds (m): far more than the rounding of
@@ -641,15 +662,7 @@ def _clearance_floor(
             if ky == 0 or kx == 0 or ky == ny or kx == nx:
                 out[ky, kx] = 0.0  # part of the rectangle lies off the grid: clearance 0
                 continue
-            best = np.inf
-            for k in range(4):
-                jy = nearest[0, ky + (k >> 1), kx + (k & 1)] - 1
-                jx = nearest[1, ky + (k >> 1), kx + (k & 1)] - 1
-                bx0 = ox + jx * res
-                by0 = oy + jy * res
-                gx = max(max(bx0 - rx1, rx0 - (bx0 + res)), 0.0)
-                gy = max(max(by0 - ry1, ry0 - (by0 + res)), 0.0)
-                best = min(best, np.hypot(gx, gy))
+            best = _nearest_squares(nearest, ky, kx, ox, oy, res, rx0, rx1, ry0, ry1)
             edge = min(min(rx0 - xmin, xmax - rx1), min(ry0 - ymin, ymax - ry1))
             out[ky, kx] = max(min(best, edge), 0.0) - _FLOOR_SLACK
     return out
