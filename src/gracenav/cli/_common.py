@@ -59,11 +59,11 @@ def number(
     return parse
 
 
-def add_palette_argument(parser: argparse.ArgumentParser) -> None:
-    """Add ``--palette FILE`` (a palette file, or a shipped palette by name, instead of
-    the default)."""
+def add_palette_argument(parser: argparse.ArgumentParser, flag: str = "--palette") -> None:
+    """Add ``--palette FILE`` (or ``flag``): a palette file, or a shipped palette by
+    name, instead of the default."""
     parser.add_argument(
-        "--palette",
+        flag,
         type=str,
         default=None,
         metavar="FILE",

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from gracenav.cli._common import add_params_argument, load_params
+from gracenav.cli._common import add_palette_argument, add_params_argument, load_params
 
 __all__ = ["register"]
 
@@ -106,13 +106,7 @@ def register(sub: Any) -> None:
         help="re-verify every policy of a palette file on the 3D model",
         description="Re-run the verification of every policy of the palette and report.",
     )
-    v.add_argument(
-        "--file",
-        type=str,
-        default=None,
-        help="palette file, or a shipped palette by name: default, speed (default: "
-        "$GRACENAV_PALETTE, else the default palette)",
-    )
+    add_palette_argument(v, "--file")
     v.add_argument(
         "--switches",
         action="store_true",
@@ -132,13 +126,7 @@ def register(sub: Any) -> None:
             "torque of every policy (lean in degrees)."
         ),
     )
-    sh.add_argument(
-        "--file",
-        type=str,
-        default=None,
-        help="palette file, or a shipped palette by name: default, speed (default: "
-        "$GRACENAV_PALETTE, else the default palette)",
-    )
+    add_palette_argument(sh, "--file")
     sh.set_defaults(func=run_show)
 
 

@@ -51,13 +51,7 @@ def register(sub: Any) -> None:
         "over the primitive, and the goal domain G of the named palette policy.",
     )
     dm.add_argument("name", help="policy name (see `gracenav palette show`)")
-    dm.add_argument(
-        "--file",
-        type=str,
-        default=None,
-        help="palette file, or a shipped palette by name: default, speed (default: "
-        "$GRACENAV_PALETTE, else the default palette)",
-    )
+    add_palette_argument(dm, "--file")
     dm.add_argument("--out", type=Path, required=True, help="output PNG file")
     dm.set_defaults(func=run_domain)
     lb = s.add_parser(
