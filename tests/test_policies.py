@@ -161,6 +161,8 @@ def test_rotate_pairs() -> None:
         np.testing.assert_array_equal(into, expect)
     with pytest.raises(ValueError, match="shape"):
         rotate_pairs(states, 1, out=np.empty((5, 6)))
+    with pytest.raises(ValueError, match="overlap"):
+        rotate_pairs(states, 1, out=states)
 
 
 def test_graceful_switches_have_no_torque_jump(palette) -> None:

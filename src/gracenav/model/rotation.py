@@ -43,6 +43,8 @@ def rotate_pairs(a: ArrayLike, k: int, *, out: FloatArray | None = None) -> Floa
     result = np.empty_like(arr) if out is None else out
     if result.shape != arr.shape:
         raise ValueError(f"out has shape {result.shape}, not the input's {arr.shape}")
+    if out is not None and np.may_share_memory(out, arr):
+        raise ValueError("out must not overlap the input (a pair is read after it is written)")
     pairs = arr.reshape(*arr.shape[:-1], arr.shape[-1] // 2, 2)
     turned = result.reshape(pairs.shape)
     x, y = pairs[..., 0], pairs[..., 1]
