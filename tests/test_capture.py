@@ -480,3 +480,41 @@ def test_a_start_at_rest_is_served_by_shifts_without_a_catch(box_room_controller
     settled = cap.plan(st, lean_deviation=(2 * opts.still_lean[0], 0.0), cost_to_go=togo)
     assert settled is not None and not settled.catch.policy.name.startswith("shift")
     assert plan.cost < settled.cost
+
+
+@pytest.mark.parametrize("trial", [7, 15])
+def test_a_start_at_rest_reaches_two_shift_ways_without_a_catch(trial) -> None:
+    """Trials 7 and 15 of random_pairs.yaml start at rest where no one-shift way from the
+    grid points next to the start leads to the goal (a rest trim near an obstacle): every
+    two-shift way from those points is read, as at a catch's end, so the start is served
+    by two shifts whose first holds it, without the still catch's 1 s hold and cheaper
+    than the way with a catch; each containment of the chain holds exactly and the
+    task reaches its goal without balancing mode."""
+    from gracenav.campaign import load_campaign
+    from gracenav.campaign.runner import trial_result
+    from gracenav.execution.capture import capture_for
+
+    camp = load_campaign(
+        Path(__file__).resolve().parent.parent / "examples" / "campaigns" / "random_pairs.yaml"
+    )
+    row, res = trial_result(camp, trial, "gracenav")
+    assert row["reached_goal"] and row["balancing_s"] == 0.0
+    t0, plan = res.episodes[0].captures[0]
+    assert t0 == 0.0
+    names = [p.policy.name for p in plan.policies]
+    assert len(names) == 2 and all(n.startswith("shift") for n in names), names
+    lib = res.library
+    start = np.array([row["start_x"], row["start_y"], 0.0, 0.0])
+    assert plan.policies[0].start_domain.contains(start)
+    assert plan.policies[1].start_domain.contains_domain(plan.policies[0].goal_domain)
+    assert lib.policy(plan.rest_row).start_domain.contains_domain(plan.policies[1].goal_domain)
+    hc = HybridController(lib, build_graph(lib))
+    togo = hc.tree(hc.goal_policy(np.array([row["goal_x"], row["goal_y"], 0.0, 0.0]))).cost_to_go
+    shifts = sum(p.duration for p in plan.policies)
+    assert plan.cost == pytest.approx(shifts + togo[plan.rest_row], abs=1e-9)
+    cap = capture_for(lib)
+    opts = cap.options
+    assert opts is not None
+    caught = cap.plan(start, lean_deviation=(2 * opts.still_lean[0], 0.0), cost_to_go=togo)
+    assert caught is not None and not caught.catch.policy.name.startswith("shift")
+    assert plan.cost < caught.cost

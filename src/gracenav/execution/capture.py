@@ -763,6 +763,17 @@ class Capture:
         catch = PlacedPolicy(m.policy, heading, np.asarray(start, dtype=float))
         return CapturePlan(catch, tuple(self._placed_shifts(cell, ks)), row, best[0])
 
+    def _holding(
+        self, ways: list[_Way], q: FloatArray, st: FloatArray, holds: dict[int, bool]
+    ) -> list[_Way]:
+        """The ways of at least one shift whose first shift, placed at grid point ``q``,
+        holds ``st`` in its S (``holds`` remembers the verdict per shift)."""
+        for _, ks, _ in ways:
+            if ks and ks[0] not in holds:
+                pol, angle = self._shifts[ks[0]]
+                holds[ks[0]] = bool(PlacedPolicy(pol, angle, q).start_domain.contains(st))
+        return [w for w in ways if w[1] and holds[w[1][0]]]
+
     def _placed_shifts(self, cell: tuple[int, int], ks: tuple[int, ...]) -> list[PlacedPolicy]:
         """The shifts ``ks`` placed one after the other from grid point ``cell``."""
         shifts = []
@@ -784,23 +795,26 @@ class Capture:
         with the plan's lean, as a task's start: no catch is needed to reach the grid):
         (shifts' duration plus the rest trim's cost-to-go, grid point, shift indices,
         rest row), or None. Each shift's S holds the G before it and the rest trim's S
-        the last G, as in every capture (the ways of :meth:`_handovers`)."""
+        the last G, as in every capture (the ways of :meth:`_handovers`); where none of
+        those reaches the goal from a grid point, every two-shift way from it is read,
+        as at a catch's end."""
         base = np.round((st[:2] - self.origin) / self.grid).astype(np.int64)
         best: tuple[float, tuple[int, int], tuple[int, ...], int] | None = None
         for offset in _NEIGHBOURS:
             cell = (int(base[0] + offset[0]), int(base[1] + offset[1]))
             q = self.origin + np.asarray(cell, dtype=float) * self.grid
-            ways = [w for w in self._handovers(cell, True) if w[1]]
-            if not ways:
-                continue
             holds: dict[int, bool] = {}
-            for _, ks, _ in ways:
-                if ks[0] not in holds:
-                    pol, angle = self._shifts[ks[0]]
-                    holds[ks[0]] = bool(PlacedPolicy(pol, angle, q).start_domain.contains(st))
-            ways = [w for w in ways if holds[w[1][0]]]
+            ways = self._holding(self._handovers(cell, True), q, st, holds)
             if settle is not None and ways:
                 settle(np.array(sorted({w[2] for w in ways}), dtype=np.int64))
+            if cost_to_go is not None and not any(
+                math.isfinite(float(cost_to_go[w[2]])) for w in ways
+            ):
+                # As for a catch's end: every two-shift way is read.
+                more = self._holding(self._chains(cell, True, every=True), q, st, holds)
+                if settle is not None and more:
+                    settle(np.array(sorted({w[2] for w in more}), dtype=np.int64))
+                ways = ways + more
             for shift_t, ks, row in ways:
                 togo = 0.0 if cost_to_go is None else float(cost_to_go[row])
                 if not math.isfinite(togo):
