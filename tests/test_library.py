@@ -567,7 +567,7 @@ def test_library_size_is_bounded_and_an_over_budget_pass_refused() -> None:
 def test_compiled_clearance_is_the_maps_clearance() -> None:
     """The sweep check's compiled clearance agrees with WorldMap.clearance, inside, on
     obstacles, on the edge and outside the map."""
-    from gracenav.library.sweeps import _clearance_at
+    from gracenav.library.sweep_check import clearance_at
 
     wmap = free_map(0.0, 0.0, 3.0, 2.0, [{"circle": {"center": [1.2, 0.9], "radius": 0.3}}])
     rng = np.random.default_rng(5)
@@ -576,7 +576,7 @@ def test_compiled_clearance_is_the_maps_clearance() -> None:
     (x0, y0), (x1, y1) = wmap.bounds
     got = np.array(
         [
-            _clearance_at(x, y, nearest, wmap.occupied, 0.0, 0.0, wmap.resolution, x0, y0, x1, y1)
+            clearance_at(x, y, nearest, wmap.occupied, 0.0, 0.0, wmap.resolution, x0, y0, x1, y1)
             for x, y in pts
         ]
     )

@@ -1,5 +1,5 @@
 """Design push: the library keeps room, where it moves fast, for the catches of every
-state a push of the design impulse leaves (gracenav.library.sweeps.PushFan)."""
+state a push of the design impulse leaves (gracenav.library.push_fans.PushFan)."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ import pytest
 from gracenav import BallbotParams, ConfigError
 from gracenav.execution.capture import capture_for
 from gracenav.library import DEFAULT_DESIGN_PUSH, build_library, push_fan
-from gracenav.library import sweeps as sweeps_module
-from gracenav.library.sweeps import (
+from gracenav.library import push_fans as push_fans_module
+from gracenav.library.push_fans import (
     FAN_DIRECTIONS,
     FAN_FLOOR,
     fastest_flat_speed,
@@ -134,7 +134,7 @@ def test_fan_keeps_policies_where_the_catches_of_pushed_states_fit(palette, monk
     All moving policies of this room: with the fan 0 of 149,088 states lack one,
     without it 108,812 of 1,556,480 (7.0 %).
     """
-    monkeypatch.setattr(sweeps_module, "FAN_FLOOR", 0.3)
+    monkeypatch.setattr(push_fans_module, "FAN_FLOOR", 0.3)
     room = load_map(BOX)
     plain = build_library(palette, room, max_halvings=0, design_push=0.0)
     lib = build_library(palette, room, max_halvings=0, design_push=7.5)
@@ -164,7 +164,7 @@ def test_pushed_speeds_beyond_every_catch_place_nothing(palette, monkeypatch) ->
     """A design push that takes the fan's states beyond the fastest pushed catch leaves
     out every policy with a fan tick: none whose flat output is faster than the floor
     remains."""
-    monkeypatch.setattr(sweeps_module, "FAN_FLOOR", 0.3)
+    monkeypatch.setattr(push_fans_module, "FAN_FLOOR", 0.3)
     fan = push_fan(palette, 60.0, 0.05)
     assert fan is not None and 0.3 + fan.speed_change > fan.speeds[-1] + fan.tolerance[-1]
     lib = build_library(palette, load_map(BOX), max_halvings=0, design_push=60.0)
@@ -199,7 +199,7 @@ def test_memory_estimate_counts_the_design_push(palette, monkeypatch) -> None:
     policies than without it, and the library built stays within the estimate."""
     from gracenav.scenarios import estimate_run_memory
 
-    monkeypatch.setattr(sweeps_module, "FAN_FLOOR", 0.3)
+    monkeypatch.setattr(push_fans_module, "FAN_FLOOR", 0.3)
     room = load_map(BOX)
     plain = estimate_run_memory(room, palette, 0, design_push=0.0)
     pushed = estimate_run_memory(room, palette, 0, design_push=7.5)
@@ -241,9 +241,9 @@ def test_the_fans_walk_and_its_discs_match_a_state_by_state_reference() -> None:
     for name in ("rest_to_cruise2_x_3_0", "cruise3_xy", "cruise2_x_to_cruise2_y_3_3"):
         prim = pal[name].primitive
         ref = prim.position[:, :2] + fan.flat_length * prim.states[:, 2:4]
-        vel = sweeps_module._flat_velocity(prim, fan.flat_length)
+        vel = push_fans_module._flat_velocity(prim, fan.flat_length)
         fast = np.flatnonzero(np.hypot(vel[:, 0], vel[:, 1]) > fan.above + 1e-9)
-        ticks = fast[:: sweeps_module._FAN_STRIDE]
+        ticks = fast[:: push_fans_module._FAN_STRIDE]
         members = fan.members(vel[ticks])
         assert members is not None and ticks.size > 10
         expect = [0]
@@ -252,15 +252,15 @@ def test_the_fans_walk_and_its_discs_match_a_state_by_state_reference() -> None:
             moved = float(np.hypot(*(ref[ticks[i]] - ref[ticks[p]])))
             dv = float(np.hypot(*(vel[ticks[i]] - vel[ticks[p]])))
             gap = moved + fan.turn(members[p], dv)
-            if np.any(members[i] != members[p]) or gap > sweeps_module.FAN_GAP:
+            if np.any(members[i] != members[p]) or gap > push_fans_module.FAN_GAP:
                 expect.append(i)
-        picked = sweeps_module._pick_fan_states(
+        picked = push_fans_module._pick_fan_states(
             ref[ticks],
             vel[ticks],
             members.astype(np.int64),
             fan.radius,
             np.maximum(fan.speeds - fan.tolerance, 1e-9),
-            sweeps_module.FAN_GAP,
+            push_fans_module.FAN_GAP,
         )
         np.testing.assert_array_equal(picked, expect)
         centres, radii = fan.samples_along(ref[ticks[picked]], vel[ticks[picked]], members[picked])

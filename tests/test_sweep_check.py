@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gracenav.library import sweeps as sweeps_module
+from gracenav.library import push_fans as push_fans_module
 from gracenav.library.instantiation import _lattice, _palette_tables
-from gracenav.library.sweeps import _check_sweeps
+from gracenav.library.sweep_check import check_sweeps
 from gracenav.world import forest_map
 
 FOOT = 0.2
@@ -37,7 +37,7 @@ def test_compiled_check_is_the_sample_by_sample_check(palette, monkeypatch, push
     verdicts equal the sample-by-sample check, and do not change when the pairs come
     in another order. With a design push (its fan from 0.3 m/s, so that the shipped
     palette has one) a type has hundreds of groups, the case the hints are for."""
-    monkeypatch.setattr(sweeps_module, "FAN_FLOOR", 0.3)
+    monkeypatch.setattr(push_fans_module, "FAN_FLOOR", 0.3)
     world = forest_map(density=0.012, seed=5)
     types, tables = _palette_tables(palette, float(world.resolution), 0.1, push)
     _, _, _, points = _lattice(world, 0.25)
@@ -48,12 +48,12 @@ def test_compiled_check_is_the_sample_by_sample_check(palette, monkeypatch, push
         assert np.max(tables["type_super_count"]) > 8  # > 64 groups: a fan
     pair_type = rng.integers(0, n_types, 3000)
     pair_point = rng.integers(0, points.shape[0], 3000)
-    got = _check_sweeps(world, points, pair_type, pair_point, tables, FOOT)
+    got = check_sweeps(world, points, pair_type, pair_point, tables, FOOT)
     want = _brute(world, points, pair_type, pair_point, tables)
     assert want.sum() >= 100 and (~want).sum() >= 100  # both verdicts, many of each
     np.testing.assert_array_equal(got, want)
     order = np.argsort(pair_point * n_types + pair_type)  # neighbours in a row
-    again = _check_sweeps(world, points, pair_type[order], pair_point[order], tables, FOOT)
+    again = check_sweeps(world, points, pair_type[order], pair_point[order], tables, FOOT)
     np.testing.assert_array_equal(again, want[order])
 
 
@@ -63,14 +63,14 @@ def test_the_clearance_floor_never_exceeds_the_clearance_and_is_near_it(seed: in
     (inside, on obstacles, on the edge and outside the map), so a disc it calls clear
     is clear; and it is tight enough to decide most discs: within one and a half cells
     of the clearance wherever the point is inside the map."""
-    from gracenav.library.sweeps import _disc_clear, _map_grid
+    from gracenav.library.sweep_check import _disc_clear, map_grid
 
     world = forest_map(4.0, 8.0, density=0.03, seed=seed)
     rng = np.random.default_rng(seed)
     (x0, y0), (x1, y1) = world.bounds
     pts = rng.uniform([x0 - 0.3, y0 - 0.3], [x1 + 0.3, y1 + 0.3], size=(20000, 2))
-    grid, floor = _map_grid(world)
-    assert _map_grid(world)[1] is floor  # computed once per map
+    grid, floor = map_grid(world)
+    assert map_grid(world)[1] is floor  # computed once per map
     want = world.clearance(pts)
     ky = (np.floor((pts[:, 1] - grid[3]) / grid[4] - 0.5) + 1).astype(int)
     kx = (np.floor((pts[:, 0] - grid[2]) / grid[4] - 0.5) + 1).astype(int)

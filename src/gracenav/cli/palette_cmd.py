@@ -291,7 +291,7 @@ def run_verify(args: argparse.Namespace) -> int:
 def run_show(args: argparse.Namespace) -> int:
     """Run ``gracenav palette show``."""
     from gracenav.library import DEFAULT_DESIGN_PUSH
-    from gracenav.library.sweeps import FAN_FLOOR, fastest_flat_speed
+    from gracenav.library.push_fans import FAN_FLOOR, fastest_flat_speed
     from gracenav.palette import PaletteLimits, load_palette
 
     pal = load_palette(args.file)

@@ -27,7 +27,9 @@ rotations of the plane: they rotate trivially, and the XY projection of D'(t)
 is a disc of radius (outer position factor) × (position extent of D(t)).
 
 Modules: :mod:`~gracenav.library.types` (policy types, instantiated policies),
-:mod:`~gracenav.library.sweeps` (swept outer domains against the map),
+:mod:`~gracenav.library.sweeps` (swept outer domains sampled),
+:mod:`~gracenav.library.push_fans` (the catches a design push calls for),
+:mod:`~gracenav.library.sweep_check` (the compiled check of sweeps against the map),
 :mod:`~gracenav.library.instantiation` (lattice placement, memory budget,
 :func:`build_library`), :mod:`~gracenav.library.library` (the library, its start index
 and coverage).
@@ -55,9 +57,11 @@ from gracenav.library.library import (
     PolicyLibrary,
     sample_position_states,
 )
-from gracenav.library.sweeps import (
+from gracenav.library.push_fans import (
     PushFan,
     push_fan,
+)
+from gracenav.library.sweeps import (
     sweep_samples,
     swept_discs,
 )

@@ -15,7 +15,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from gracenav.errors import ConfigError
 from gracenav.library.library import DEFAULT_COVERAGE_SAMPLES, PolicyLibrary, sample_position_states
-from gracenav.library.sweeps import _check_sweeps, _sweep, _sweep_tables, push_fan, sweep_samples
+from gracenav.library.push_fans import push_fan
+from gracenav.library.sweep_check import check_sweeps
+from gracenav.library.sweeps import sweep, sweep_samples, sweep_tables
 from gracenav.library.types import (
     _LATTICE_EPS,
     BoolArray,
@@ -83,7 +85,7 @@ _CHOOSE_CELLS = 2**22
 MAX_DESIGN_PUSH = 80.0
 
 #: Default design push of :func:`build_library` (N s). It acts only where a reference's
-#: flat output is faster than :data:`gracenav.library.sweeps.FAN_FLOOR` (0.8 m/s), so
+#: flat output is faster than :data:`gracenav.library.push_fans.FAN_FLOOR` (0.8 m/s), so
 #: the shipped palette's libraries do not change. With the speed levels (`gracenav
 #: palette build --reference limited --cruise-speeds 1.0 1.2`) it catches every one of
 #: 900 seeded pushes of 0–16 N s on the 5 m room (291–295 of 300 per seed without)
@@ -146,10 +148,10 @@ def _palette_tables(
             got = samples.get(id(pol.primitive))
             if got is None:
                 got = samples[id(pol.primitive)] = sweep_samples(pol, step, 0.5 * speed_clearance)
-            sweeps.append(_sweep(pol, step, got, speed_clearance, fan))
+            sweeps.append(sweep(pol, step, got, speed_clearance, fan))
         cached = cache[key] = (
             PolicyTypes.from_palette(palette),
-            _sweep_tables(sweeps),
+            sweep_tables(sweeps),
         )
     return cached
 
@@ -233,7 +235,7 @@ def _choose(
             undecided_t.append(t[~sure])
             undecided_q.append(q[~sure])
         ut, uq = np.concatenate(undecided_t), np.concatenate(undecided_q)
-        ok = _check_sweeps(world_map, points, ut, uq, tables, footprint)
+        ok = check_sweeps(world_map, points, ut, uq, tables, footprint)
         lt = np.concatenate([*sure_t, ut[ok]])
         lq = np.concatenate([*sure_q, uq[ok]])
         taken[types.scale_group[lt], lq] = True
@@ -757,7 +759,7 @@ def build_library(
         Default: the lattice starts at the map's minimum corner.
     design_push : float
         Design push (N s, 0: none): where the reference is faster than
-        :data:`~gracenav.library.sweeps.FAN_FLOOR`, the catches of every state this
+        :data:`~gracenav.library.push_fans.FAN_FLOOR`, the catches of every state this
         push leaves must fit too (see the notes). Policies whose pushed states no
         verified catch holds are not placed. Default :data:`DEFAULT_DESIGN_PUSH`; a
         palette whose references all stay at or below the floor needs no fan, and
@@ -819,15 +821,15 @@ def build_library(
     **Design push.** A catch's reach grows with the square of its speed (0.71 m from
     0.8 m/s, 2.81 m from 1.3 m/s on the speed-level palette), faster than any
     allowance proportional to speed. With ``design_push`` J > 0, wherever the flat
-    output's reference speed exceeds :data:`~gracenav.library.sweeps.FAN_FLOOR`, the
+    output's reference speed exceeds :data:`~gracenav.library.push_fans.FAN_FLOOR`, the
     flat output's state is pushed by J in each of
-    :data:`~gracenav.library.sweeps.FAN_DIRECTIONS` directions (its velocity changes by
-    :func:`~gracenav.library.sweeps.flat_speed_change`), and the pushed catch of the
+    :data:`~gracenav.library.push_fans.FAN_DIRECTIONS` directions (its velocity changes by
+    :func:`~gracenav.library.push_fans.flat_speed_change`), and the pushed catch of the
     nearest speed, turned along the new velocity and started there, must fit with its
     swept D' grown by one cell of the catches' placement grid
-    (:class:`~gracenav.library.sweeps.PushFan`). It is checked at states along the
+    (:class:`~gracenav.library.push_fans.PushFan`). It is checked at states along the
     reference whose catches' discs are at most
-    :data:`~gracenav.library.sweeps.FAN_GAP` from those of every state between them,
+    :data:`~gracenav.library.push_fans.FAN_GAP` from those of every state between them,
     and every disc is grown by that. A pushed speed that no pushed catch's
     S holds (beyond the fastest catch the torque limit lets verify) leaves the policy
     out everywhere. At and below the floor the allowance above applies alone.
