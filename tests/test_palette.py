@@ -16,6 +16,7 @@ from gracenav.palette import (
     PALETTE_ENV,
     Palette,
     cached_palette_path,
+    forget_read_palettes,
     load_palette,
     palette_key,
     shipped_palette_path,
@@ -33,6 +34,30 @@ def test_shipped_palette_loads_and_round_trips(tmp_path) -> None:
     for a, b in zip(pal.policies, again.policies, strict=True):
         np.testing.assert_array_equal(a.primitive.states, b.primitive.states)
         assert a.report == b.report and a.start_radii == b.start_radii
+
+
+def test_a_palette_read_before_is_read_again_once_the_read_palettes_are_forgotten(
+    monkeypatch, tmp_path
+) -> None:
+    """An unchanged file read before gives the same palette without reading it; after
+    :func:`forget_read_palettes` the next load reads the file again (a new palette)."""
+    copy = tmp_path / "p.npz"
+    copy.write_bytes(shipped_palette_path().read_bytes())
+    reads: list[str] = []
+    from_bytes = Palette.from_bytes
+
+    def counted(data: bytes, *, source: str = "palette") -> Palette:
+        reads.append(source)
+        return from_bytes(data, source=source)
+
+    monkeypatch.setattr(Palette, "from_bytes", counted)
+    first = load_palette(copy)
+    assert load_palette(copy) is first and len(reads) == 1
+    forget_read_palettes()
+    again = load_palette(copy)
+    assert again is not first and len(reads) == 2
+    assert again.key == first.key
+    assert load_palette(copy) is again and len(reads) == 2
 
 
 def test_corrupt_file_is_refused(tmp_path) -> None:

@@ -24,6 +24,7 @@ __all__ = [
     "SHIPPED_PALETTES",
     "build_palette_for",
     "cached_palette_path",
+    "forget_read_palettes",
     "load_palette",
     "palette_file",
     "shipped_palette_path",
@@ -171,6 +172,21 @@ def _read_palette(path: Path) -> Palette:
         while len(_READ) > _READ_KEEP:
             del _READ[next(iter(_READ))]
     return pal
+
+
+def forget_read_palettes() -> None:
+    """Forget the palettes this process has read.
+
+    :func:`load_palette` keeps the palettes it reads (:data:`_READ`) and returns the same
+    object again while a file is unchanged; after this the next load reads and checks the
+    file anew, and returns a new object (for timing a real load, or to drop the
+    memory).
+
+    See Also
+    --------
+    load_palette
+    """
+    _READ.clear()
 
 
 def _redesign(gains: ControllerGains) -> ControllerGains:
