@@ -24,7 +24,7 @@ median of time / T* with L the straight distance (a lower bound on the path, so 
 stays a bound). ``--design-push J`` sets ``planner.design_push`` (N s; default the
 scenario default, gracenav.library.DEFAULT_DESIGN_PUSH; 0: none) on both measurements:
 the library then keeps room, where it moves faster than 0.8 m/s
-(``gracenav.library.sweeps.FAN_FLOOR``), for the catches of a push of J (with the
+(``gracenav.library.push_fans.FAN_FLOOR``), for the catches of a push of J (with the
 pairs, the campaign's draws are then checked against that library). ``--breakdown``
 also prints, per pair, where gracenav's time goes (the start: capture regulators,
 catches, shifts and rest trims before the first lattice maneuver that moves; the

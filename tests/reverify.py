@@ -6,7 +6,13 @@ import dataclasses
 
 import numpy as np
 
-from gracenav.policies import MotionPolicy, VerificationOptions, run_policy, verify_placements
+from gracenav.policies import (
+    MotionPolicy,
+    PushLeanTable,
+    VerificationOptions,
+    run_policy,
+    verify_placements,
+)
 
 
 def assert_holds_from_unchosen_points(
@@ -16,12 +22,15 @@ def assert_holds_from_unchosen_points(
     boundary_points: int,
     interior: int,
     seed: int,
+    push_leans: PushLeanTable | None = None,
 ) -> None:
     """``pol`` verified again on the 3D model from ``boundary_points`` on the surface
-    of its S (another set than its own) at both placements, and run from ``interior``
-    random states inside S (uniform in the ellipsoid): every run stays in D' and ends
-    in G."""
-    rep = verify_placements(pol, dataclasses.replace(options, boundary_points=boundary_points))
+    of its S (another set than its own) at both placements (each also started with the
+    leans of ``push_leans``), and run from ``interior`` random states inside S (uniform
+    in the ellipsoid): every run stays in D' and ends in G."""
+    rep = verify_placements(
+        pol, dataclasses.replace(options, boundary_points=boundary_points), push_leans=push_leans
+    )
     assert rep.passed, rep
     rng = np.random.default_rng(seed)
     u = rng.normal(size=(interior, 4))

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from gracenav.cli import main
+from gracenav.palette import load_palette
 
 
 def test_simulate_balance_writes_csv_and_png(tmp_path, capsys) -> None:
@@ -79,3 +80,8 @@ def test_palette_show(capsys) -> None:
     assert "limits: lean 4.5° planned, 8° verified; torque 60 N m; cruise 0.5 m/s" in out
     assert "design push (planner.design_push, default 8 N s)" in out
     assert "this palette's reach 0.7" in out and "so it changes no library" in out
+    pal = load_palette()
+    checked = [p for p in pal.policies if p.still_report is not None]
+    passed = sum(p.starts_from_still_band for p in checked)
+    assert 0 < passed < len(checked)
+    assert f"still band: {passed} of the {len(checked)} policies that start at rest" in out

@@ -187,3 +187,74 @@ def test_a_goal_off_the_map_lattice_ends_on_a_rest_trim_of_the_goal_lattice() ->
     np.testing.assert_allclose(lib.end_state[last.to_policy], [*GOAL, 0.0, 0.0], atol=1e-9)
     assert on_map.episodes[0].events[-1].to_policy == TERMINAL
     assert on_goal.runs[0].time_s < on_map.runs[0].time_s
+
+
+def _trial(i: int):  # type: ignore[no-untyped-def]
+    from gracenav.campaign import load_campaign
+    from gracenav.campaign.runner import trial_result
+
+    camp = load_campaign(
+        Path(__file__).resolve().parent.parent / "examples/campaigns/random_pairs.yaml"
+    )
+    return trial_result(camp, i, "gracenav")
+
+
+def _hold_left(ep: Episode, lib):  # type: ignore[no-untyped-def]
+    """(the switch that left the start's hold, the tick the hold began, when it would
+    have ended): the hold is the start's capture regulator, or the last stage of its
+    capture; the switch is the first into a library policy after it."""
+    first = ep.events[0]
+    k = next(i for i, e in enumerate(ep.events) if i > 0 and e.to_policy >= 0)
+    began = ep.events[k - 1]
+    if first.to_policy == CAPTURE:
+        duration = ep.captures[0][1].policies[-1].duration
+    else:
+        assert lib.policy(first.to_policy).policy.capture
+        duration = lib.policy(first.to_policy).duration
+    return ep.events[k], began.tick, began.time + duration
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("trial", [1, 10, 15])
+def test_a_hold_is_left_in_the_still_band_once_the_next_policy_holds_the_state(trial) -> None:
+    """Trial 1 of random_pairs.yaml starts with a capture (one shift), trial 10 with a
+    capture regulator, trial 15 with two shifts (the second left at its first tick): each
+    hold is left before its own end, at its first tick at which the next policy's S holds
+    the state and the lean and lean rate are within the still band, into a policy
+    verified from that band; the task reaches its goal without leaving a domain or
+    balancing."""
+    row, res = _trial(trial)
+    ep, lib = res.episodes[0], res.library
+    assert row["reached_goal"] and row["balancing_s"] == 0.0
+    assert all(e.reason is not EventReason.DOMAIN_EXIT for e in ep.events)
+    e, began, planned_end = _hold_left(ep, lib)
+    assert e.time < planned_end - 0.25
+    assert e.reason is EventReason.GRACEFUL
+    nxt = lib.policy(e.to_policy)
+    assert nxt.policy.starts_from_still_band
+    band = lib.palette.options.catch.still_lean
+    x = ep.states[e.tick]
+    assert np.hypot(*x[2:4]) <= band[0] and np.hypot(*x[6:8]) <= band[1]
+    assert nxt.start_domain.contains(position_state(x, ep.radius))
+    # Left at the first tick of the hold at which the rule held.
+    for tick in range(began, e.tick):
+        y = ep.states[tick]
+        assert not (
+            np.hypot(*y[2:4]) <= band[0]
+            and np.hypot(*y[6:8]) <= band[1]
+            and nxt.start_domain.contains(position_state(y, ep.radius))
+        )
+
+
+@pytest.mark.slow
+def test_a_hold_is_kept_to_its_end_without_the_still_band_verification(monkeypatch) -> None:
+    """The same start as trial 1 when the next policy was not verified from the still
+    band: the capture runs to its end, and the task ends later."""
+    from gracenav.policies import MotionPolicy
+
+    row, _ = _trial(1)
+    monkeypatch.setattr(MotionPolicy, "starts_from_still_band", property(lambda self: False))
+    late_row, res = _trial(1)
+    e, _, planned_end = _hold_left(res.episodes[0], res.library)
+    assert e.time >= planned_end - 1e-9
+    assert late_row["reached_goal"] and late_row["time_s"] > row["time_s"] + 0.25

@@ -21,7 +21,7 @@ from gracenav.palette import (
     palette_key,
     shipped_palette_path,
 )
-from gracenav.policies import VerificationOptions
+from gracenav.policies import PrimitiveKind, VerificationOptions
 from gracenav.primitives import PrimitiveSetOptions
 
 
@@ -34,6 +34,7 @@ def test_shipped_palette_loads_and_round_trips(tmp_path) -> None:
     for a, b in zip(pal.policies, again.policies, strict=True):
         np.testing.assert_array_equal(a.primitive.states, b.primitive.states)
         assert a.report == b.report and a.start_radii == b.start_radii
+        assert a.still_report == b.still_report
 
 
 def test_a_palette_read_before_is_read_again_once_the_read_palettes_are_forgotten(
@@ -370,3 +371,27 @@ def test_shipped_palettes_by_name_and_files_of_those_names(monkeypatch, tmp_path
         load_palette(Path("speed"))
     with pytest.raises(CacheError, match="shipped: default, speed"):
         shipped_palette_path("fast")
+
+
+@pytest.mark.parametrize("name", ["default", "speed"])
+def test_policies_that_start_at_rest_were_verified_from_the_still_band(name: str) -> None:
+    """Every kept policy that starts at rest, other than the rest trims and the capture
+    regulators, carries its verification from the corners of the still band at both
+    placements (the hybrid controller starts it from a hold only when it passed); the
+    others carry none. The maneuvers from rest sized by bisection all pass."""
+    pal = load_palette(name)
+    at_rest = [
+        p
+        for p in pal.policies
+        if not p.capture
+        and p.primitive.kind is not PrimitiveKind.REST
+        and not np.any(p.primitive.start_velocity != 0.0)
+    ]
+    assert at_rest
+    others = [p for p in pal.policies if all(p is not q for q in at_rest)]
+    assert all(p.still_report is not None and p.still_report.runs > 0 for p in at_rest)
+    assert all(p.still_report is None and not p.starts_from_still_band for p in others)
+    for p in at_rest:
+        assert p.starts_from_still_band == p.still_report.passed
+    base = [p for p in at_rest if not p.label]
+    assert base and all(p.starts_from_still_band for p in base)

@@ -202,3 +202,56 @@ def test_the_speed_palettes_fast_policies_hold_from_points_the_verifier_never_us
     assert_holds_from_unchosen_points(
         pal[name], pal.options, boundary_points=67, interior=12, seed=11
     )
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("palette_name", "name"),
+    [
+        ("default", "rest_to_cruise_x_1_0"),
+        ("default", "rest_to_cruise_xy_1_1[S=6G]"),
+        ("speed", "rest_to_cruise2_x_3_0"),
+    ],
+)
+def test_policies_started_from_a_hold_hold_from_the_still_band_at_unchosen_points(
+    palette_name: str, name: str
+) -> None:
+    """Policies that start at rest and passed verification from the still band (the
+    hybrid controller may start them from a hold with the lean within it) verified
+    again on the 3D model from another boundary set, each point also started at the
+    band's four corners, and from random interior states of S."""
+    from gracenav.palette import load_palette
+    from gracenav.policies.catches import band_leans
+
+    pal = load_palette(palette_name)
+    pol = pal[name]
+    assert pol.starts_from_still_band
+    assert pal.options.catch is not None
+    assert_holds_from_unchosen_points(
+        pol,
+        pal.options,
+        boundary_points=67,
+        interior=12,
+        seed=13,
+        push_leans=band_leans(*pal.options.catch.still_lean),
+    )
+
+
+def test_verify_still_start_checks_only_policies_that_start_at_rest(palette) -> None:
+    """A maneuver from rest gets a report from the still band's corners at both
+    placements (5 starts per boundary point); a trim, a maneuver from cruise, a rest
+    trim and a capture regulator are returned unchanged, as is any policy when the
+    options have no still band (no catches)."""
+    from gracenav.policies.catches import verify_still_start
+
+    opts = dataclasses.replace(palette.options, boundary_points=16)
+    pol = dataclasses.replace(palette["rest_to_cruise_x_1_0"], still_report=None)
+    checked = verify_still_start(pol, opts)
+    assert checked.still_report is not None
+    assert checked.still_report.runs == 2 * 16 * 5
+    assert checked.starts_from_still_band == checked.still_report.passed
+    assert checked.primitive is pol.primitive and checked.report == pol.report
+    for name in ("cruise_x", "cruise_x_to_rest_1_0", "rest", "regulate[ep=0.2m]"):
+        other = dataclasses.replace(palette[name], still_report=None)
+        assert verify_still_start(other, opts) is other
+    assert verify_still_start(pol, dataclasses.replace(opts, catch=None)) is pol

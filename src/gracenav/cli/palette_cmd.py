@@ -257,6 +257,13 @@ def run_verify(args: argparse.Namespace) -> int:
             rep = verify_placements(pol, opts, params=plant)
         if not rep.passed:
             failed.append(pol.name)
+        elif pol.starts_from_still_band and opts.catch is not None:
+            # As built: also from the corners of the still band.
+            from gracenav.policies.catches import band_leans
+
+            band = band_leans(*opts.catch.still_lean)
+            if not verify_placements(pol, opts, params=plant, push_leans=band).passed:
+                failed.append(f"{pol.name} (still band)")
     placed = (*pal.catches, *pal.shifts)
     if placed:
         from gracenav.policies import RegulatorOptions, push_lean_table
@@ -269,12 +276,13 @@ def run_verify(args: argparse.Namespace) -> int:
                 failed.append(pol.name)
     dt = time.perf_counter() - t0
     total = len(pal) + len(placed)
+    still = sum(p.starts_from_still_band for p in pal.policies)
     if failed:
         print(f"{len(failed)} of {total} policies FAILED verification: {', '.join(failed)}")
         return 1
     print(
-        f"all {len(pal)} policies verified at 0° and 90°, and {len(pal.catches)} catches and "
-        f"{len(pal.shifts)} shifts as built, in {dt:.1f} s"
+        f"all {len(pal)} policies verified at 0° and 90° ({still} from the still band too), "
+        f"and {len(pal.catches)} catches and {len(pal.shifts)} shifts as built, in {dt:.1f} s"
     )
     if args.switches:
         jumps = switch_torque_jumps(pal.policies)
@@ -307,5 +315,11 @@ def run_show(args: argparse.Namespace) -> int:
         f"design push (planner.design_push, default {DEFAULT_DESIGN_PUSH:g} N s): kept room "
         f"where a reference's flat output exceeds {FAN_FLOOR:g} m/s; this palette's reach "
         f"{fastest:.3f} m/s, {applies}"
+    )
+    checked = [p for p in pal.policies if p.still_report is not None]
+    print(
+        f"still band: {sum(p.starts_from_still_band for p in checked)} of the {len(checked)} "
+        "policies that start at rest verified from it too (a hold may hand over to them "
+        "before its end)"
     )
     return 0

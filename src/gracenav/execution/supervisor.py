@@ -48,6 +48,7 @@ if TYPE_CHECKING:
     from gracenav.library import PolicyLibrary
     from gracenav.params import BallbotParams
     from gracenav.planning import LazyPolicyTree, PolicyTree
+    from gracenav.policies.domains import EllipsoidalDomain
 
 __all__ = ["Planner", "Segment", "Supervisor", "fallen"]
 
@@ -127,6 +128,9 @@ class Segment:
     balance: bool = False
     waiting: bool = False
     k: int = 0
+    #: A hold that may be left before its end: (row, its S, lean band); see
+    #: :meth:`Supervisor._leaving`.
+    leave: tuple[int, EllipsoidalDomain, tuple[float, float]] | None = None
 
     def command(self, law: TrackingLaw, x: FloatArray) -> tuple[FloatArray, float]:
         """The law's torque at tick ``k`` for the measured state ``x``, and the value of
@@ -277,6 +281,14 @@ class Supervisor:
                 self.goals_reached.append((self.t, self.k_goal))
                 self._finish(TaskStatus.GOAL_REACHED, hold_xy=self.goal_states[self.k_goal][:2])
                 break
+            if not exited and seg.leave is not None and self._may_leave(seg.leave, x):
+                # The hold is left before its end (see _leaving).
+                self.segment = None
+                to = seg.leave[0]
+                self.captured = []
+                self._event(to, EventReason.GRACEFUL)
+                self.current, self.offset = to, 0
+                continue
             if exited or k == seg.n:
                 self.segment = None
                 if seg.balance:
@@ -311,6 +323,59 @@ class Supervisor:
         xy = position_state(self.x, self.r)[:2] if hold_xy is None else hold_xy
         hold = state_from_position(np.r_[xy, 0.0, 0.0], self.r)
         self.hold_final = hold if status is not TaskStatus.FELL else None
+
+    def _leaving(self, current: int) -> tuple[int, EllipsoidalDomain, tuple[float, float]] | None:
+        """The policy a hold starting now may hand over to before its own end, with its
+        S and the lean band it was verified from, or None.
+
+        A hold is the last stage of a capture (a shift or catch, which ends resting at
+        a point while the robot settles there) or a capture regulator. The policy after
+        it (past the rest trim it ends on, as :meth:`_past_hold` skips it) starts at
+        rest; when it was verified from the still band too
+        (:attr:`~gracenav.policies.MotionPolicy.starts_from_still_band`), it starts at
+        the first tick at which its S holds the state and the lean and lean rate are
+        within that band (:meth:`_may_leave`): the rule of every switch, a verified
+        policy whose S contains the state, with a lean it was verified from. Only with
+        ``skip_holds``, not while moving obstacles are tracked or the robot holds for a
+        blocked way, and not onto the goal's rest trim. (An earlier stage of a capture is
+        held to its end: handing a moving robot to the next shift, which starts at rest,
+        made the starts of the random pairs slower and jerkier.)"""
+        if not self.options.skip_holds or self.dyn is not None or self.holding:
+            return None
+        lib = self.hc.library
+        catch = lib.palette.options.catch
+        if catch is None:
+            return None
+        if current == CAPTURE:
+            if len(self.captured) != 1:
+                return None
+            after = self.capture_row
+        elif 0 <= current < len(lib) and lib.policy(current).policy.capture:
+            after = int(self.tree.next_policy[current])
+        else:
+            return None
+        if after < 0 or after == self.sequence[self.k_goal]:
+            return None
+        if lib.policy(after).policy.primitive.kind is PrimitiveKind.REST:
+            rest, after = after, int(self.tree.next_policy[after])
+            if after < 0 or after == rest:
+                return None
+        nxt = lib.policy(after)
+        if not nxt.policy.starts_from_still_band:
+            return None
+        band = (float(catch.still_lean[0]), float(catch.still_lean[1]))
+        return after, nxt.start_domain, band
+
+    def _may_leave(
+        self, leave: tuple[int, EllipsoidalDomain, tuple[float, float]], x: FloatArray
+    ) -> bool:
+        """Whether the hold may be left at this tick (:meth:`_leaving`): the lean and
+        lean rate (norms over both axes; the plan lean where the next policy starts is
+        upright) within the still band and its S holding the state."""
+        _, domain, band = leave
+        if math.hypot(x[2], x[3]) > band[0] or math.hypot(x[6], x[7]) > band[1]:
+            return False
+        return bool(domain.contains(position_state(x, self.r)))
 
     def _settles(self, current: int, is_goal: bool) -> bool:
         """Whether the policy starting may end the task before its own end
@@ -444,6 +509,7 @@ class Supervisor:
             truncated=truncated,
             split=split,
             is_goal=is_goal,
+            leave=self._leaving(current),
         )
 
     def _event(self, to: int, reason: EventReason, frm: int | None = None) -> None:

@@ -168,8 +168,12 @@ class ExecutionOptions:
     skip_holds : bool
         Start the policy after a rest trim on the way (or the terminal after the goal's
         rest trim) as soon as its start domain holds the state, instead of holding the
-        rest trim for its whole duration first (a gracenav extension; False runs every
-        rest trim of the tree, as the paper does).
+        rest trim for its whole duration first; and leave a hold (the last stage of a
+        capture, a capture regulator) for the policy after it once that policy's S
+        holds the state with the lean within the still band it was verified from
+        (:attr:`gracenav.policies.MotionPolicy.starts_from_still_band`), instead of at
+        the hold's end (gracenav extensions; False runs every rest trim and hold to its
+        end, as the paper does).
     """
 
     plant: PlantKind = "model3d"

@@ -35,14 +35,20 @@ def _size_one(
     args: tuple[SampledPrimitive, ControllerGains, VerificationOptions, DomainShape],
 ) -> tuple[MotionPolicy, ...]:
     """The policy of one primitive sized by bisection, then its verified larger variants
-    and its fine copies."""
+    and its fine copies; those that pass and start at rest are verified from the still
+    band too (:func:`gracenav.policies.catches.verify_still_start`)."""
     from gracenav.policies import fine_variants, scaled_variants, size_policy
+    from gracenav.policies.catches import verify_still_start
 
     prim, gains, options, shape = args
     base = size_policy(prim, gains, options, shape=shape)
     if base.report is None or not base.report.passed:
         return (base,)
-    return (base, *scaled_variants(base, options), *fine_variants(base, options))
+    kept = (base, *scaled_variants(base, options), *fine_variants(base, options))
+    return tuple(
+        verify_still_start(p, options) if p.report is not None and p.report.passed else p
+        for p in kept
+    )
 
 
 def _regulators(

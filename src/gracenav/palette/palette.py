@@ -47,7 +47,7 @@ REGULATOR_NAME = "regulate"
 COARSE_STRIDE = 8
 
 #: Bumped whenever the planner, controller or verification code changes results.
-ALGORITHM_VERSION = "9"
+ALGORITHM_VERSION = "10"
 
 
 def palette_key(
@@ -234,6 +234,9 @@ class Palette:
                     "start_correlation": pol.start_correlation,
                     "outer_cross": pol.outer_cross,
                     "flat_start": pol.flat_start,
+                    "still_report": (
+                        None if pol.still_report is None else dataclasses.asdict(pol.still_report)
+                    ),
                 }
             )
         arrays["header"] = np.frombuffer(json.dumps(header).encode(), dtype=np.uint8)
@@ -394,6 +397,11 @@ def _policies_from(
                 ),
                 outer_cross=None if meta.get("outer_cross") is None else float(meta["outer_cross"]),
                 flat_start=bool(meta.get("flat_start", False)),
+                still_report=(
+                    None
+                    if meta.get("still_report") is None
+                    else VerificationReport(**meta["still_report"])
+                ),
             )
         )
     return tuple(out)

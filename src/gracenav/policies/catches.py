@@ -96,6 +96,7 @@ __all__ = [
     "shift_policies",
     "shift_primitive",
     "verify_headings",
+    "verify_still_start",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -414,6 +415,29 @@ def band_leans(lean: float, rate: float) -> PushLeanTable:
         lean=np.array([[lean, lean, -lean, -lean]]),
         lean_rate=np.array([[rate, -rate, rate, -rate]]),
     )
+
+
+def verify_still_start(policy: MotionPolicy, options: VerificationOptions) -> MotionPolicy:
+    """``policy`` with its :attr:`~gracenav.policies.MotionPolicy.still_report` when it
+    starts at rest and is neither a rest trim nor a capture policy: verified at both
+    placements from its S with the plan lean and from the corners of the still band
+    (:attr:`CatchOptions.still_lean`, :func:`band_leans`). Unchanged otherwise, and
+    when ``options`` has no catches (no still band).
+
+    A hold (a capture's last shift, a capture regulator) ends with the lean within that
+    band long before its own end; a policy verified so may start from it then, by the
+    same rule as every switch (its S holds the state)."""
+    cat = options.catch
+    prim = policy.primitive
+    if (
+        cat is None
+        or policy.capture
+        or prim.kind is PrimitiveKind.REST
+        or bool(np.any(prim.start_velocity != 0.0))
+    ):
+        return policy
+    report = verify_placements(policy, options, push_leans=band_leans(*cat.still_lean))
+    return replace(policy, still_report=report)
 
 
 def verify_headings(

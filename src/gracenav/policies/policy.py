@@ -105,6 +105,12 @@ class MotionPolicy:
         linearised model, moves on smoothly (its speed swings 4–5 times less);
         verification then starts each lean variant with the flat output on S's
         boundary, and the hybrid controller tests the same state.
+    still_report : VerificationReport or None
+        For a policy that starts at rest (not a rest trim, not a capture policy): its
+        verification at both placements from the corners of the still band
+        (:attr:`CatchOptions.still_lean` around the plan lean, along the motion), None
+        when not verified so. When it passed (:attr:`starts_from_still_band`), the
+        hybrid controller may start it from a hold before the hold ends.
     """
 
     primitive: SampledPrimitive
@@ -119,11 +125,19 @@ class MotionPolicy:
     start_correlation: float | None = None
     outer_cross: float | None = None
     flat_start: bool = False
+    still_report: VerificationReport | None = None
 
     @property
     def name(self) -> str:
         """The label of a scaled variant, else the primitive's name."""
         return self.label or self.primitive.name
+
+    @property
+    def starts_from_still_band(self) -> bool:
+        """Whether the policy passed verification from the still band
+        (:attr:`still_report`): a hold may hand over to it once its S holds the state
+        and the lean is within that band."""
+        return self.still_report is not None and self.still_report.passed
 
     @property
     def scale(self) -> float:
