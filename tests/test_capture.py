@@ -433,19 +433,21 @@ def test_summary_reports_verified_recoveries_and_balancing_time() -> None:
 @pytest.mark.slow
 def test_palette_verify_rechecks_regulators_as_built(palette, tmp_path, capsys) -> None:
     """`gracenav palette verify` re-verifies a capture regulator with the push leans and
-    boundary points it was built with, optionally on another plant (--params)."""
+    boundary points it was built with, and a maneuver from rest from the still band
+    too, optionally on another plant (--params)."""
     from gracenav.cli import main
 
     small = dataclasses.replace(
         palette,
-        policies=(palette["rest"], palette["regulate[ep=0.2m]"]),
+        policies=(palette["rest"], palette["regulate[ep=0.2m]"], palette["rest_to_cruise_x_1_0"]),
         catches=tuple(palette.catches[2:4]),  # the 0.1 m/s catches, both lean classes
         shifts=tuple(palette.shifts[:1]),
     )
     path = small.save(tmp_path / "small.npz")
     assert main(["palette", "verify", "--file", str(path)]) == 0
     out = capsys.readouterr().out
-    assert "all 2 policies verified" in out and "2 catches and 1 shifts as built" in out
+    assert "all 3 policies verified at 0° and 90° (1 from the still band too)" in out
+    assert "2 catches and 1 shifts as built" in out
     heavier = tmp_path / "p.yaml"
     heavier.write_text("body_mass: 56.0\n")
     assert main(["palette", "verify", "--file", str(path), "--params", str(heavier)]) == 0
