@@ -12,6 +12,7 @@ hold while moving obstacles block the way, balancing mode, or the end of the tas
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass
@@ -35,7 +36,7 @@ from gracenav.execution.types import (
     SwitchEvent,
     TaskStatus,
 )
-from gracenav.planning.repair import HOLD_MARGIN
+from gracenav.planning.repair import HOLD_MARGIN, ReplanEvent
 from gracenav.policies import PrimitiveKind, instantiated_reference
 from gracenav.sim import position_state, state_from_position
 
@@ -48,6 +49,7 @@ if TYPE_CHECKING:
     from gracenav.library import PolicyLibrary
     from gracenav.params import BallbotParams
     from gracenav.planning import LazyPolicyTree, PolicyTree
+    from gracenav.planning.graph import PreparesGraph
     from gracenav.policies.domains import EllipsoidalDomain
 
 __all__ = ["Planner", "Segment", "Supervisor", "fallen"]
@@ -88,6 +90,7 @@ class Planner(Protocol):
     controller's model, and the planning queries (:class:`HybridController`)."""
 
     library: PolicyLibrary
+    graph: PreparesGraph
     goals: Goals
     gains: _Gains
     params: BallbotParams
@@ -196,6 +199,11 @@ class Supervisor:
         self.settle_buf = np.zeros((SETTLE_WINDOW, 4))
         self.settle_n = 0
         self.settling = False
+        #: Domain exits per library row, the rows set aside after repeated exits, and
+        #: the repairs that set them aside (see _set_aside).
+        self.exits: dict[int, int] = {}
+        self.set_aside: NDArray[np.bool_] | None = None
+        self.own_replans: list[ReplanEvent] = []
         if capture_plan is not None:
             self.capture_plans.append((0.0, capture_plan))
             self.captured, self.capture_row = list(capture_plan.policies), capture_plan.rest_row
@@ -434,7 +442,8 @@ class Supervisor:
             status=self.status,
             goals_reached=tuple(self.goals_reached),
             tree_seconds=tree_seconds,
-            replans=tuple(self.dyn.replans) if self.dyn is not None else (),
+            replans=(tuple(self.dyn.replans) if self.dyn is not None else ())
+            + tuple(self.own_replans),
             blocked_time=self.blocked_time,
             captures=tuple(self.capture_plans),
         )
@@ -741,6 +750,8 @@ class Supervisor:
             and np.linalg.norm(p[2:] - g[2:]) <= options.goal_tolerance
         )
         if exited:
+            if 0 <= current < len(hc.library):
+                self._set_aside(current)
             return EventReason.DOMAIN_EXIT, hc.best_policy(p, self.tree)
         if current == CAPTURE:
             if self.captured[0].goal_domain.contains(p):
@@ -804,6 +815,42 @@ class Supervisor:
         if nxt < 0 or not hc.library.policy(nxt).start_domain.contains(p):
             return EventReason.NOT_IN_GOAL, hc.best_policy(p, self.tree)
         return self._past_hold(nxt, p)
+
+    def _set_aside(self, row: int) -> None:
+        """Count a domain exit from library row ``row`` when the row had been entered
+        by a graceful switch (its S held the state where a verified policy handed over;
+        a row entered after another exit, as in the moments after a push, is not
+        counted); at the ``ExecutionOptions.set_aside_exits``-th, plan the rest of the
+        way to the current goal without it (:func:`gracenav.planning.repair.repair_tree`,
+        the repair moving obstacles use): a policy the robot keeps leaving although it
+        was started as planned (its domains too small for the sensor's noise, or for
+        the plant) is not started again, and the capture that follows the exit takes
+        the robot onto another way. Whole trees only, and not while moving obstacles are
+        tracked (their repair owns the tree then)."""
+        from gracenav.planning import PolicyTree as WholeTree
+        from gracenav.planning.repair import repair_tree
+
+        started = self.events[-1] if self.events else None
+        if started is None or started.to_policy != row or not started.reason.graceful:
+            return  # entered after an exit or a push: the exit says nothing of the policy
+        n = self.exits.get(row, 0) + 1
+        self.exits[row] = n
+        limit = self.options.set_aside_exits
+        if limit <= 0 or n < limit or self.dyn is not None:
+            return
+        if not isinstance(self.tree, WholeTree):
+            return
+        if self.set_aside is None:
+            self.set_aside = np.zeros(len(self.hc.library), dtype=bool)
+        was = self.set_aside.copy()
+        self.set_aside[row] = True
+        t0 = time.perf_counter()
+        self.tree, changed = repair_tree(self.tree, self.hc.graph, was, self.set_aside)
+        self.own_replans.append(
+            ReplanEvent(
+                self.t, "policy_left", time.perf_counter() - t0, int(self.set_aside.sum()), changed
+            )
+        )
 
     def _past_hold(self, row: int, p: FloatArray) -> tuple[EventReason, int]:
         """The switch into rest trim ``row`` (its S holds ``p``), or past it.

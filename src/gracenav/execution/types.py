@@ -174,6 +174,12 @@ class ExecutionOptions:
         (:attr:`gracenav.policies.MotionPolicy.starts_from_still_band`), instead of at
         the hold's end (gracenav extensions; False runs every rest trim and hold to its
         end, as the paper does).
+    set_aside_exits : int
+        Plan the rest of the way to the current goal without a library policy once the
+        robot has left its domain this many times in the task (a repair of the tree,
+        logged as a replan ``policy_left``); 0 never does (a gracenav extension: a
+        policy whose domains the sensor noise or the plant keeps leaving is otherwise
+        started again after every capture).
     """
 
     plant: PlantKind = "model3d"
@@ -189,6 +195,7 @@ class ExecutionOptions:
     planning_latency: float | None = None
     settle_tolerance: float = 0.01
     skip_holds: bool = True
+    set_aside_exits: int = 2
 
     def __post_init__(self) -> None:
         if self.plant not in PLANT_KINDS:
@@ -212,6 +219,12 @@ class ExecutionOptions:
         ):
             raise ConfigError(
                 f"planning_latency must be >= 0 (s) or None, got {self.planning_latency!r}"
+            )
+        if isinstance(self.set_aside_exits, bool) or not isinstance(self.set_aside_exits, int):
+            raise ConfigError(f"set_aside_exits must be an int >= 0, got {self.set_aside_exits!r}")
+        if self.set_aside_exits < 0:
+            raise ConfigError(
+                f"set_aside_exits must be >= 0 (0: never), got {self.set_aside_exits}"
             )
 
 

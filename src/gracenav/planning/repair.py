@@ -133,8 +133,10 @@ class ReplanEvent:
     reason : str
         ``obstacle_sensed`` (a new obstacle is known), ``obstacle_moved`` (a known
         one moved: the blocked set changed), ``obstacle_cleared`` (one was forgotten and
-        policies became free); for the decoupled baseline (:mod:`gracenav.baseline`),
-        ``tracking_error`` (a new geometric plan from the measured state).
+        policies became free), ``policy_left`` (a policy the robot left too often is set
+        aside, :attr:`gracenav.execution.ExecutionOptions.set_aside_exits`); for the
+        decoupled baseline (:mod:`gracenav.baseline`), ``tracking_error`` (a new
+        geometric plan from the measured state).
     latency_s : float
         Wall time of invalidation and repair (s).
     blocked : int
