@@ -36,7 +36,8 @@ from gracenav.execution.types import (
     SwitchEvent,
     TaskStatus,
 )
-from gracenav.planning.repair import HOLD_MARGIN, ReplanEvent
+from gracenav.planning import PolicyTree as WholeTree
+from gracenav.planning.repair import HOLD_MARGIN, ReplanEvent, repair_tree
 from gracenav.policies import PrimitiveKind, instantiated_reference
 from gracenav.sim import position_state, state_from_position
 
@@ -199,10 +200,11 @@ class Supervisor:
         self.settle_buf = np.zeros((SETTLE_WINDOW, 4))
         self.settle_n = 0
         self.settling = False
-        #: Domain exits per library row, the rows set aside after repeated exits, and
-        #: the repairs that set them aside (see _set_aside).
+        #: Domain exits per library row, the rows set aside after repeated exits on
+        #: the tree they were set aside from, and the repairs (see _set_aside).
         self.exits: dict[int, int] = {}
         self.set_aside: NDArray[np.bool_] | None = None
+        self.aside_tree: PolicyTree | None = None
         self.own_replans: list[ReplanEvent] = []
         if capture_plan is not None:
             self.capture_plans.append((0.0, capture_plan))
@@ -825,11 +827,9 @@ class Supervisor:
         the repair moving obstacles use): a policy the robot keeps leaving although it
         was started as planned (its domains too small for the sensor's noise, or for
         the plant) is not started again, and the capture that follows the exit takes
-        the robot onto another way. Whole trees only, and not while moving obstacles are
-        tracked (their repair owns the tree then)."""
-        from gracenav.planning import PolicyTree as WholeTree
-        from gracenav.planning.repair import repair_tree
-
+        the robot onto another way. What is set aside holds on the tree it was set
+        aside from: a new goal's tree starts with none. Whole trees only, and not while
+        moving obstacles are tracked (their repair owns the tree then)."""
         started = self.events[-1] if self.events else None
         if started is None or started.to_policy != row or not started.reason.graceful:
             return  # entered after an exit or a push: the exit says nothing of the policy
@@ -840,12 +840,14 @@ class Supervisor:
             return
         if not isinstance(self.tree, WholeTree):
             return
-        if self.set_aside is None:
+        if self.set_aside is None or self.tree is not self.aside_tree:
+            # The first set aside on this tree (a new goal's tree holds none yet).
             self.set_aside = np.zeros(len(self.hc.library), dtype=bool)
         was = self.set_aside.copy()
         self.set_aside[row] = True
         t0 = time.perf_counter()
         self.tree, changed = repair_tree(self.tree, self.hc.graph, was, self.set_aside)
+        self.aside_tree = self.tree
         self.own_replans.append(
             ReplanEvent(
                 self.t, "policy_left", time.perf_counter() - t0, int(self.set_aside.sum()), changed
