@@ -257,12 +257,11 @@ def run_verify(args: argparse.Namespace) -> int:
             rep = verify_placements(pol, opts, params=plant)
         if not rep.passed:
             failed.append(pol.name)
-        elif pol.starts_from_still_band and opts.catch is not None:
+        elif pol.starts_from_still_band:
             # As built: also from the corners of the still band.
-            from gracenav.policies.catches import band_leans
+            from gracenav.policies.catches import verify_still_start
 
-            band = band_leans(*opts.catch.still_lean)
-            if not verify_placements(pol, opts, params=plant, push_leans=band).passed:
+            if not verify_still_start(pol, opts, params=plant).starts_from_still_band:
                 failed.append(f"{pol.name} (still band)")
     placed = (*pal.catches, *pal.shifts)
     if placed:

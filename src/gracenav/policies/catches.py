@@ -417,12 +417,15 @@ def band_leans(lean: float, rate: float) -> PushLeanTable:
     )
 
 
-def verify_still_start(policy: MotionPolicy, options: VerificationOptions) -> MotionPolicy:
+def verify_still_start(
+    policy: MotionPolicy, options: VerificationOptions, *, params: BallbotParams | None = None
+) -> MotionPolicy:
     """``policy`` with its :attr:`~gracenav.policies.MotionPolicy.still_report` when it
     starts at rest and is neither a rest trim nor a capture policy: verified at both
     placements from its S with the plan lean and from the corners of the still band
-    (:attr:`CatchOptions.still_lean`, :func:`band_leans`). Unchanged otherwise, and
-    when ``options`` has no catches (no still band).
+    (:attr:`CatchOptions.still_lean`, :func:`band_leans`), on the plant of ``params``
+    (default the controller's nominal one). Unchanged otherwise, and when ``options``
+    has no catches (no still band).
 
     A hold (a capture's last shift, a capture regulator) ends with the lean within that
     band long before its own end; a policy verified so may start from it then, by the
@@ -436,7 +439,9 @@ def verify_still_start(policy: MotionPolicy, options: VerificationOptions) -> Mo
         or bool(np.any(prim.start_velocity != 0.0))
     ):
         return policy
-    report = verify_placements(policy, options, push_leans=band_leans(*cat.still_lean))
+    report = verify_placements(
+        policy, options, params=params, push_leans=band_leans(*cat.still_lean)
+    )
     return replace(policy, still_report=report)
 
 
