@@ -12,7 +12,9 @@ replans, and the same states, inputs and references (sampled once a second) with
 digests in the file show on the machine that made it; a test of the last bits would
 fail on another BLAS or CPU for no reason, so the digests are not asserted.) The
 decoupled baseline's references differ by ~1e-13 from run to run of the same code (the
-shape planner's results depend on the process's history). Position noise is now
+shape planner's results depend on the process's history) and by up to 3.3e-9 from one
+machine to another of the same kind (measured on fig5 and fig7, with the code of the
+file's commit too), so they are compared within 1e-7. Position noise is now
 drawn once per tick for the whole run and put on the measured state the whole
 controller sees (before, it was drawn anew for every segment from the same seed and
 reached the control law only): those runs are compared by outcome.
@@ -56,9 +58,10 @@ def test_episodes_equal_the_whole_segment_simulation() -> None:
             assert a["goals_reached"] == b["goals_reached"], name
             assert a["samples"] == b["samples"], name
             assert a["replans"] == b["replans"] and a["captures"] == b["captures"], name
-            np.testing.assert_allclose(_final(a), _final(b), rtol=0, atol=1e-9, err_msg=name)
+            atol = 1e-7 if name.endswith("/decoupled") else 1e-9
+            np.testing.assert_allclose(_final(a), _final(b), rtol=0, atol=atol, err_msg=name)
             np.testing.assert_allclose(
-                np.array(a["trace"]), np.array(b["trace"]), rtol=0, atol=1e-9, err_msg=name
+                np.array(a["trace"]), np.array(b["trace"]), rtol=0, atol=atol, err_msg=name
             )
             if not name.endswith("/decoupled"):
                 same += 1
