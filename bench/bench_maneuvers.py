@@ -6,12 +6,17 @@ For every maneuver of the catalogue (rest to rest, starts and stops, turns, lane
 changes, U-turns) it prints the shortest duration on the grid of each reference kind
 (``PrimitiveSetOptions.reference``: ``nonic`` or ``limited``,
 :mod:`gracenav.primitives.limited`), their ratio, and the peak lean and torque of the
-3D plans; then the sums and the median ratio. ``--cruise-speed`` builds both sets for
-another cruise speed (``--max-speed`` caps the references' speed), to see which
-maneuvers each reference makes feasible there.
+3D plans, and the largest jerk of the ball along each plan (the 3D plan's ball
+velocity sampled at 1024 Hz between the trims before and after it, the maneuver's own
+ends included, and differentiated as the run summaries do,
+:mod:`gracenav.execution.smoothness`); then the sums and the median ratio.
+``--cruise-speed`` builds both sets for another cruise speed (``--max-speed`` caps the
+references' speed), to see which maneuvers each reference makes feasible there;
+``--max-ball-jerk`` is the limited references' bound on the ball's jerk
+(``PrimitiveSetOptions.max_ball_jerk``), to see what a tighter bound costs in time.
 
     OPENBLAS_NUM_THREADS=1 python bench/bench_maneuvers.py [--cruise-speed 0.5]
-        [--max-speed 0.8] [--duration-step 0.125]
+        [--max-speed 0.8] [--duration-step 0.125] [--max-ball-jerk 6]
 """
 
 from __future__ import annotations
@@ -26,8 +31,24 @@ import statistics
 import sys
 import time
 
+import numpy as np
+
+from gracenav.execution.smoothness import JERK_WINDOW_S, jerk_profile
 from gracenav.primitives import PrimitiveSetOptions, primitive_set
 from gracenav.primitives.motion import Maneuver
+
+RATE = 1024.0  # Hz, the control rate the runs are sampled at
+
+
+def plan_ball_jerk(p: Maneuver) -> float:
+    """Largest ball jerk (m/s³) along the maneuver's 3D plan, with the trims before and
+    after it (constant velocity for a window each side), so that its ends count."""
+    n = round(p.duration * RATE)
+    t = np.arange(n + 1) / RATE
+    v = p.sample(t).position[:, 2:4]
+    pad = round(JERK_WINDOW_S * RATE)
+    v = np.vstack([np.repeat(v[:1], pad, axis=0), v, np.repeat(v[-1:], pad, axis=0)])
+    return jerk_profile(np.arange(len(v)) / RATE, v).max
 
 
 def main() -> None:
@@ -35,6 +56,12 @@ def main() -> None:
     ap.add_argument("--cruise-speed", type=float, default=0.5, help="cruise speed (m/s)")
     ap.add_argument("--max-speed", type=float, default=0.8, help="reference speed cap (m/s)")
     ap.add_argument("--duration-step", type=float, default=0.125, help="duration grid (s)")
+    ap.add_argument(
+        "--max-ball-jerk",
+        type=float,
+        default=PrimitiveSetOptions().max_ball_jerk,
+        help="the limited references' bound on the ball's jerk (m/s³; default %(default)s)",
+    )
     args = ap.parse_args()
     sets = {}
     for kind in ("nonic", "limited"):
@@ -44,6 +71,7 @@ def main() -> None:
             max_speed=args.max_speed,
             duration_step=args.duration_step,
             reference=kind,  # type: ignore[arg-type]
+            max_ball_jerk=args.max_ball_jerk,
         )
         sets[kind] = primitive_set(options=options)
         print(f"{kind}: set built or loaded in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
@@ -55,8 +83,9 @@ def main() -> None:
     lean = "lean (°)"
     print(
         f"{'maneuver':28s} {'nonic s':>8s} {'limited s':>9s} {'ratio':>6s}   "
-        f"{lean + ' n / l':>15s} {'torque (N m) n / l':>19s}"
+        f"{lean + ' n / l':>15s} {'torque (N m) n / l':>19s} {'ball jerk n / l':>16s}"
     )
+    jerks: dict[str, list[float]] = {"nonic": [], "limited": []}
     ratios = []
     total = {"nonic": 0.0, "limited": 0.0}
     for name in names:
@@ -76,14 +105,29 @@ def main() -> None:
             return f"{lean_deg:.2f}", f"{max(r.peak_torque for r in p.reports):.1f}"
 
         (ln, tn), (ll, tl) = peaks(n), peaks(lim)
-        print(f"{name:28s} {dn} {dl} {ratio}   {ln + ' / ' + ll:>15s} {tn + ' / ' + tl:>19s}")
+        jn = plan_ball_jerk(n) if n else math.nan
+        jl = plan_ball_jerk(lim) if lim else math.nan
+        if n and lim:
+            jerks["nonic"].append(jn)
+            jerks["limited"].append(jl)
+        print(
+            f"{name:28s} {dn} {dl} {ratio}   {ln + ' / ' + ll:>15s} {tn + ' / ' + tl:>19s} "
+            f"{f'{jn:.2f} / {jl:.2f}':>16s}"
+        )
     both = len(ratios)
     print(
         f"\nmaneuvers: nonic {len(rows['nonic'])}, limited {len(rows['limited'])}; on the "
         f"{both} both have: total {total['nonic']:.3f} s / {total['limited']:.3f} s "
         f"({total['limited'] / max(total['nonic'], 1e-9):.3f}), median ratio "
-        f"{statistics.median(ratios) if ratios else float('nan'):.3f}"
+        f"{statistics.median(ratios) if ratios else float('nan'):.3f}; ball jerk (m/s³) "
+        f"median / largest: nonic {_stats(jerks['nonic'])}, limited {_stats(jerks['limited'])}"
     )
+
+
+def _stats(values: list[float]) -> str:
+    if not values:
+        return "-"
+    return f"{statistics.median(values):.2f} / {max(values):.2f}"
 
 
 if __name__ == "__main__":
