@@ -11,6 +11,7 @@ import pytest
 from gracenav import BallbotParams, ConfigError
 from gracenav.errors import PlanningError
 from gracenav.execution import EventReason, ExecutionOptions, HybridController, TaskStatus
+from gracenav.execution.capture import ShiftTerminal
 from gracenav.library import build_library
 from gracenav.palette import REGULATOR_NAME
 from gracenav.planning.graph import build_graph, gracefully_prepares
@@ -254,10 +255,14 @@ def test_goals_off_the_lattice_are_reached_within_a_millimetre(box_room_controll
     assert terms, "a terminal regulator fits there"
     term = terms[0]
     # Its S contains the G of the rest trim the task approaches (G ⊂ S, exactly), and
-    # its D' grown by the footprint is clear of obstacles.
+    # the regulator's D' at the goal (after shifts from that trim, where they reach the
+    # goal) grown by the footprint is clear of obstacles.
     approach = hc.library.policy(term.approach)
     assert term.start_domain.contains_domain(approach.goal_domain)
-    reach = term.policy.outer_factors[0] * term.policy.start_radii.position
+    regulator = term.hold if isinstance(term, ShiftTerminal) else term
+    assert regulator.policy.capture
+    np.testing.assert_allclose(regulator.start_xy, g[:2], atol=1e-12)
+    reach = regulator.policy.outer_factors[0] * regulator.policy.start_radii.position
     assert hc.library.world_map.clearance(g[None, :2])[0] >= hc.library.footprint_radius + reach
     start = [4.0, 4.0, 0.0, 0.0] if goal[0] < 2.5 else [1.0, 1.0, 0.0, 0.0]
     x0 = state_from_position(start, PARAMS.ball_radius)
@@ -269,7 +274,9 @@ def test_goals_off_the_lattice_are_reached_within_a_millimetre(box_room_controll
     assert np.hypot(*(p[:2] - g[:2])) <= 0.01 and np.hypot(*p[2:]) <= 0.05
     ep = hc.run(x0, [g], options=ExecutionOptions(settle_tolerance=1e-3, goal_tolerance=1e-3))
     assert ep.status is TaskStatus.GOAL_REACHED
-    assert ep.events[-1].reason is EventReason.TERMINAL
+    assert ep.events[-1].reason is (
+        EventReason.HOLD_GOAL if isinstance(term, ShiftTerminal) else EventReason.TERMINAL
+    )
     p = ep.position_state[-1]
     assert np.hypot(*(p[:2] - g[:2])) <= 1e-3
     assert np.hypot(*p[2:]) <= 1e-3

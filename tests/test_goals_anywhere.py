@@ -119,10 +119,50 @@ def test_where_no_terminal_fits_the_refusal_says_why(box_room_library, box_room_
     assert hc.goal_policy(g) == terms[0].approach
 
 
-def test_regulators_stay_first_where_they_fit(box_room_library, box_room_graph) -> None:
+def test_regulator_ends_become_shifts_from_the_same_approach(
+    box_room_library, box_room_graph
+) -> None:
+    """Where capture regulators fit, the task approaches the goal through the same rest
+    trims as before, in the same order; from each one that shifts reach the goal from,
+    it ends with the shifts and a regulator at the goal instead of the regulator's step
+    of the reference."""
     hc = HybridController(box_room_library, box_room_graph)
-    terms = hc.terminal_policies(np.array([1.13, 1.37, 0.0, 0.0]))
-    assert terms and all(isinstance(t, TerminalPolicy) for t in terms)
+    g = np.array([1.13, 1.37, 0.0, 0.0])
+    terms = hc.terminal_policies(g)
+    regulators = hc.goals._regulators(g, every_size=False)
+    assert regulators and all(isinstance(t, TerminalPolicy) for t in regulators)
+    assert [t.approach for t in terms] == [t.approach for t in regulators]
+    shifts = [t for t in terms if isinstance(t, ShiftTerminal)]
+    assert isinstance(terms[0], ShiftTerminal) and len(shifts) >= len(terms) // 2
+    for term in shifts:
+        assert term.hold.policy.capture
+        np.testing.assert_allclose(term.goal_xy, g[:2], atol=1e-12)
+        before = box_room_library.policy(term.approach).goal_domain
+        for stage in term.stages:
+            assert stage.start_domain.contains_domain(before)
+            before = stage.goal_domain
+        assert term.goal_domain.contains(g)
+
+
+def test_a_goal_off_the_lattice_ends_without_a_step() -> None:
+    """A goal off the map's lattice, 1 cm off the shifts' grid: the shifts and a hold at
+    the goal end the task within the settle tolerance of it, the reference never steps
+    by more than the grid's half diagonal (the regulator's step to the goal is up to
+    0.2 m), and the ball's jerk stays within the shifts' bound (the regulator's step
+    jerks it at 30-40 m/s³)."""
+    goal = (1.13 + 0.01, 1.37)
+    scenario = parse_scenario(
+        _task(BOX_ROOM, goal, (4.0, 4.25), planner={"cost": "time", "lattice_anchor": "map"}),
+        source="box.yaml",
+    )
+    result = run_scenario(scenario)
+    run, ep = result.runs[0], result.episodes[0]
+    assert run.reached_goal and run.stop_reason == "goal_reached"
+    assert any(e.reason is EventReason.TERMINAL for e in ep.events)
+    assert run.final_error_m is not None and run.final_error_m <= 0.011
+    steps = np.hypot(*np.diff(ep.reference[:, :2], axis=0).T)
+    assert steps.max() <= _GRID_HALF_DIAGONAL + 1e-3
+    assert run.max_jerk_mps3 <= 12.0
 
 
 CLUTTERED = ROOT / "examples" / "maps" / "room_6m_cluttered.yaml"

@@ -21,6 +21,7 @@ from gracenav.execution import (
     HybridController,
     TaskStatus,
 )
+from gracenav.execution.capture import ShiftTerminal
 from gracenav.policies import PrimitiveKind
 from gracenav.scenarios import parse_scenario
 from gracenav.scenarios.run import prepare_library
@@ -99,7 +100,11 @@ def test_skipped_holds_switch_into_domains_that_hold_the_state(
     term = hc.terminal_policies(np.array([*GOAL, 0.0, 0.0]))[0]
     for e in skipped.events[1:]:
         p = position_state(skipped.states[e.tick], hc.radius)
-        if e.to_policy == TERMINAL:
+        if e.to_policy == TERMINAL and e.reason is EventReason.HOLD_GOAL:
+            # The shifts' last rest tail left for the regulator at the goal.
+            assert isinstance(term, ShiftTerminal) and term.hold.policy.capture
+            assert term.hold.start_domain.contains(p)
+        elif e.to_policy == TERMINAL:
             assert e.reason is EventReason.TERMINAL
             assert term.start_domain.contains(p)
         elif e.to_policy == CAPTURE:

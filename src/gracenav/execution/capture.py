@@ -539,6 +539,7 @@ class Capture:
         xy = self.origin + cells * self.grid
         dist = np.hypot(*(xy - g[:2]).T)
         hold_path, hold_reach = swept_discs(hold, min(float(library.sweep_step), _SWEEP_STEP))
+        at_goal = self._goal_regulator(g)
         for n in np.argsort(dist, kind="stable"):
             if dist[n] > _TERMINAL_REACH * self.grid + 1e-12:
                 break
@@ -548,6 +549,7 @@ class Capture:
                 continue
             if not np.all(self._clear(xy[n] + hold_path, hold_reach)):
                 continue
+            holds = [*at_goal, (end, (hold_path, hold_reach))]
             ways = (
                 self._arrivals(cell) + self._arrival_chains(cell)
                 if every
@@ -555,7 +557,7 @@ class Capture:
             )
             out = []
             for t, ks, row in ways:
-                term = self._terminal_of(ks, row, end, (hold_path, hold_reach), opts)
+                term = self._terminal_of(ks, row, holds, opts)
                 if term is not None:
                     out.append((t, float(np.hypot(*(library.start_xy[row] - g[:2]))), term))
             if out:
@@ -565,16 +567,38 @@ class Capture:
                 return tuple(c[2] for c in out)
         return ()
 
+    def _goal_regulator(
+        self, g: FloatArray
+    ) -> list[tuple[PlacedPolicy, tuple[FloatArray, FloatArray]]]:
+        """The smallest capture regulator of the palette placed at the goal ``g`` whose
+        swept D' grown by the footprint is clear, with its swept discs (empty if none
+        is): the hold of a shift terminal that brings the robot onto the goal itself
+        rather than onto the grid point next to it, the reference stepping by at most
+        the grid's half diagonal when it starts."""
+        library = self.library
+        regs = sorted(
+            (p for p in library.palette.policies if p.capture),
+            key=lambda p: p.start_radii.position,
+        )
+        step = min(float(library.sweep_step), _SWEEP_STEP)
+        for reg in regs:
+            path, reach = swept_discs(reg, step)
+            if np.all(self._clear(g[:2] + path, reach)):
+                return [(PlacedPolicy(reg, 0.0, g[:2].copy()), (path, reach))]
+        return []
+
     def _terminal_of(
         self,
         ks: tuple[int, ...],
         row: int,
-        hold: PlacedPolicy,
-        hold_sweep: tuple[FloatArray, FloatArray],
+        holds: list[tuple[PlacedPolicy, tuple[FloatArray, FloatArray]]],
         opts: CatchOptions,
     ) -> ShiftTerminal | None:
-        """The shift terminal of shifts ``ks`` from rest trim ``row``'s point to the
-        hold, if every containment holds exactly."""
+        """The shift terminal of shifts ``ks`` from rest trim ``row``'s point to a
+        hold, if every containment holds exactly. ``holds``: (hold, its swept discs),
+        the regulator at the goal first (:meth:`_goal_regulator`), then the settled
+        hold at the grid point the shifts end on; the first whose S holds the last
+        shift's G is taken."""
         library = self.library
         at = np.round((library.start_xy[row] - self.origin) / self.grid).astype(np.int64)
         before = library.policy(int(row)).goal_domain
@@ -591,8 +615,10 @@ class Capture:
             reach.append(self._shift_reach[k])
             before = placed.goal_domain
             at = at + self._shift_cells[k]
-        if not hold.start_domain.contains_domain(before):
+        found = next((h for h in holds if h[0].start_domain.contains_domain(before)), None)
+        if found is None:
             return None
+        hold, hold_sweep = found
         points.append(hold.start_xy + hold_sweep[0])
         reach.append(hold_sweep[1])
         return ShiftTerminal(
@@ -865,14 +891,17 @@ class TerminalPolicy(PlacedPolicy):
 
 @dataclass(frozen=True, eq=False)
 class ShiftTerminal:
-    """A goal at rest off the lattice reached by shifts where no capture regulator fits:
-    from the end of a library rest trim (``approach``), plain shifts of the palette
-    (:meth:`Capture.shift_terminals`) to a grid point next to the goal whose G holds
-    it, then the palette's settled catch from rest held there until the robot is at
-    the goal. Catch ⪰ shift ⪰ rest trim, run the other way: the rest trim's G lies in
-    the first shift's S, each shift's G in the next one's S, the last one's G in the
-    hold's S (all exact ellipsoid containments), and every swept D' grown by the
-    footprint is clear of the map's obstacles.
+    """A goal at rest off the lattice reached by shifts (where no capture regulator
+    fits, or from the approach trim of one that does, instead of the regulator's step of
+    the reference: :class:`~gracenav.execution.goals.Goals`): from the end of a library
+    rest trim (``approach``), plain shifts of the palette (:meth:`Capture.shift_terminals`)
+    to a grid point next to the goal whose G holds it, then a hold until the robot is at
+    the goal: the smallest capture regulator whose D' fits, placed at the goal, or
+    where none fits or its S does not hold the last shift's G, the palette's settled
+    catch from rest held at that grid point. Catch ⪰ shift ⪰ rest trim, run the other
+    way: the rest trim's G lies in the first shift's S, each shift's G in the next
+    one's S, the last one's G in the hold's S (all exact ellipsoid containments), and
+    every swept D' grown by the footprint is clear of the map's obstacles.
 
     Attributes
     ----------
@@ -917,7 +946,8 @@ class ShiftTerminal:
 
     @property
     def goal_xy(self) -> FloatArray:
-        """The grid point it holds the robot at (m), within a grid spacing of the goal."""
+        """The point it holds the robot at (m): the goal, or a grid point within a grid
+        spacing of it."""
         return self.hold.start_xy
 
     @property

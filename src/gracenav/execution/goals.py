@@ -206,7 +206,9 @@ class Goals:
         if got is not None:
             return got
         result: tuple[Terminal, ...] = self._regulators(g, every_size=False)
-        if not result and self._containing_trim(g) < 0:
+        if result:
+            result = self._graceful(g, result)
+        elif self._containing_trim(g) < 0:
             result = self._shift_terminals(g)
         self._terminals[key] = result
         return result
@@ -237,6 +239,18 @@ class Goals:
             got = tuple(kept)
             self._terminals[key] = got
         return got
+
+    def _graceful(self, g: FloatArray, regulators: tuple[Terminal, ...]) -> tuple[Terminal, ...]:
+        """``regulators`` with each one replaced by the best shift terminal from the same
+        approach trim where one reaches the goal: the way to the goal is the same, and
+        the task ends without the regulator's step of the reference (up to the
+        regulator's S, 0.2 m and more), the shifts' reference moving on to the grid
+        point next to the goal and a regulator there stepping by at most the grid's
+        half diagonal (:meth:`Capture.shift_terminals`)."""
+        by_approach: dict[int, Terminal] = {}
+        for term in self._shift_terminals(g):
+            by_approach.setdefault(term.approach, term)
+        return tuple(by_approach.get(t.approach, t) for t in regulators)
 
     def _shift_terminals(self, g: FloatArray, *, every: bool = False) -> tuple[Terminal, ...]:
         capture = capture_for(self.library)

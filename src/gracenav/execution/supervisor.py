@@ -135,6 +135,9 @@ class Segment:
     #: A hold that may be left before its end: (row, its S, lean band); see
     #: :meth:`Supervisor._leaving`.
     leave: tuple[int, EllipsoidalDomain, tuple[float, float]] | None = None
+    #: The tick from which a shift terminal's hold may take over from its last shift;
+    #: see :meth:`Supervisor._hold_from`.
+    hold_from: int | None = None
 
     def command(self, law: TrackingLaw, x: FloatArray) -> tuple[FloatArray, float]:
         """The law's torque at tick ``k`` for the measured state ``x``, and the value of
@@ -143,6 +146,10 @@ class Segment:
         if self.centers is not None and self.shapes is not None:
             return law(x, self.ref_states[k], self.ref_inputs[k], self.centers[k], self.shapes[k])
         return law(x, self.ref_states[k], self.ref_inputs[k], _NO_CENTER, _NO_SHAPE)
+
+
+#: How near (m, m/s, m/s²) a reference is to the goal at rest where a task may settle.
+_AT_REST = 1e-6
 
 
 def fallen(x: FloatArray, fall_lean: float) -> bool:
@@ -200,6 +207,8 @@ class Supervisor:
         self.settle_buf = np.zeros((SETTLE_WINDOW, 4))
         self.settle_n = 0
         self.settling = False
+        #: Tick of the running segment from which its reference rests at the goal.
+        self.settle_from = 0
         #: Domain exits per library row, the rows set aside after repeated exits on
         #: the tree they were set aside from, and the repairs (see _set_aside).
         self.exits: dict[int, int] = {}
@@ -284,13 +293,25 @@ class Supervisor:
                 break
             tau, val = seg.command(self.law, x)
             exited = val > 1.0
-            if not self.settling:
+            if not self.settling or k < self.settle_from:
                 self.settle_n = 0
             elif not exited and self._settled(x):
                 self.segment = None
                 self.goals_reached.append((self.t, self.k_goal))
                 self._finish(TaskStatus.GOAL_REACHED, hold_xy=self.goal_states[self.k_goal][:2])
                 break
+            if (
+                not exited
+                and seg.hold_from is not None
+                and k >= seg.hold_from
+                and self._may_hold(x)
+            ):
+                # The last shift's rest tail is left for the regulator at the goal.
+                self.segment = None
+                self.term_stage += 1
+                self._event(TERMINAL, EventReason.HOLD_GOAL)
+                self.offset = 0
+                continue
             if not exited and seg.leave is not None and self._may_leave(seg.leave, x):
                 # The hold is left before its end (see _leaving).
                 self.segment = None
@@ -389,14 +410,19 @@ class Supervisor:
 
     def _settles(self, current: int, is_goal: bool) -> bool:
         """Whether the policy starting may end the task before its own end
-        (:meth:`_settled`): the last goal's terminal regulator, or the rest trim that
-        ends at the last goal; the reference of either is the goal at rest, as is the
-        hold after the end."""
+        (:meth:`_settled`): the last goal's terminal regulator, the last shift or the
+        hold of its shift terminal, or the rest trim that ends at the last goal; each
+        settles only from the tick its reference rests at the goal
+        (:meth:`_settle_tick`), which is then the hold after the end too."""
         if self.k_goal + 1 < len(self.sequence) or self.loops > 1:
             return False
         term = self.terminals[self.k_goal]
         if current == TERMINAL:
-            return isinstance(term, TerminalPolicy)
+            # A regulator's reference is the goal; a shift terminal's last shift or hold
+            # settles from where its reference rests at the goal (_settle_tick).
+            return term is not None and (
+                isinstance(term, TerminalPolicy) or self.term_stage >= len(term.shifts) - 1
+            )
         if not is_goal or term is not None or current < 0:
             return False
         lib = self.hc.library
@@ -405,6 +431,60 @@ class Supervisor:
             lib.policy(current).policy.primitive.kind is PrimitiveKind.REST
             and np.all(g[2:] == 0.0)
             and np.linalg.norm(lib.end_state[current] - g) <= ON_LATTICE
+        )
+
+    def _settle_tick(self, ref_pos: FloatArray) -> int:
+        """The tick of the current segment from which the policy's reference (ball
+        position, velocity and acceleration, ``ref_pos``) rests at the goal for the rest
+        of the policy: 0 for a rest trim at the goal or a terminal regulator, the start
+        of a shift's rest tail; past the segment's end when it never does (a shift of a
+        terminal that ends next to the goal)."""
+        g = self.goal_states[self.k_goal]
+        if not np.all(g[2:] == 0.0):
+            return len(ref_pos)
+        return self._rest_tick(ref_pos, g[:2])
+
+    def _rest_tick(self, ref_pos: FloatArray, xy: FloatArray) -> int:
+        """The tick of the current segment from which the reference ``ref_pos`` rests at
+        ``xy`` for the rest of the policy (past the segment's end if it does not end
+        there at rest)."""
+        end = ref_pos[-1]
+        if not (np.linalg.norm(end[:2] - xy) <= _AT_REST and np.all(np.abs(end[2:]) <= _AT_REST)):
+            return len(ref_pos)
+        moving = np.flatnonzero(np.any(np.abs(ref_pos - end) > _AT_REST, axis=1))
+        first = int(moving[-1]) + 1 if moving.size else 0
+        return max(0, first - self.offset)
+
+    def _hold_from(self, current: int, ref_pos: FloatArray) -> int | None:
+        """For the last shift of a shift terminal whose hold is a capture regulator at
+        the goal (the shift ends at the grid point next to it): the tick of the current
+        segment from which the hold may take over, the start of the shift's rest tail
+        (its reference rests there), once the regulator's S holds the state within the
+        lean band (:meth:`_may_hold`); None otherwise. With ``skip_holds`` only, as the
+        other holds left early (:meth:`_leaving`)."""
+        term = self.terminals[self.k_goal]
+        if (
+            current != TERMINAL
+            or not isinstance(term, ShiftTerminal)
+            or not self.options.skip_holds
+            or self.term_stage != len(term.shifts) - 1
+            or not term.hold.policy.capture
+        ):
+            return None
+        end = ref_pos[-1, :2]
+        if np.linalg.norm(end - term.goal_xy) <= _AT_REST:
+            return None
+        tick = self._rest_tick(ref_pos, end)
+        return tick if tick < len(ref_pos) else None
+
+    def _may_hold(self, x: FloatArray) -> bool:
+        """Whether the shift terminal's hold may start at this tick: its S holds the
+        state and the lean is within the band its stages were verified from."""
+        term = self.terminals[self.k_goal]
+        assert isinstance(term, ShiftTerminal)
+        return bool(
+            term.hold.start_domain.contains(position_state(x, self.r))
+            and term.accepts_lean(float(np.hypot(*x[2:4])), float(np.hypot(*x[6:8])))
         )
 
     def _settled(self, x: FloatArray) -> bool:
@@ -493,6 +573,9 @@ class Supervisor:
             cached = (current, placed, ref.states, ref.inputs, ref_pos, shapes)
             self.arrays = cached
         _, _, ref_states, ref_inputs, ref_pos, shapes = cached
+        if self.settling:
+            self.settle_from = self._settle_tick(ref_pos)
+            self.settling = self.settle_from < len(ref_pos)
         if is_goal and self.k_goal + 1 < len(self.sequence):
             # Regenerate the tree for the next goal while the last policy to the
             # current goal runs (paper Sec. V-C).
@@ -521,6 +604,7 @@ class Supervisor:
             split=split,
             is_goal=is_goal,
             leave=self._leaving(current),
+            hold_from=self._hold_from(current, ref_pos),
         )
 
     def _event(self, to: int, reason: EventReason, frm: int | None = None) -> None:
@@ -914,6 +998,19 @@ class Supervisor:
         if self.term_stage + 1 < len(term.shifts):
             self.term_stage += 1
             return EventReason.GRACEFUL, TERMINAL
+        g = self.goal_states[self.k_goal]
+        if (
+            near_goal
+            and self.term_stage < len(term.shifts)
+            and not self.settling
+            and np.hypot(*(term.goal_xy - g[:2])) <= _AT_REST
+        ):
+            # The last shift ends at a grid point next to the goal: the hold at the
+            # goal settles the robot there unless it is there already.
+            near_goal = bool(
+                np.hypot(*(p[:2] - g[:2]))
+                <= min(self.options.settle_tolerance, self.options.goal_tolerance)
+            )
         if near_goal:
             self.goals_reached.append((self.t, self.k_goal))
             self._finish(TaskStatus.GOAL_REACHED)
