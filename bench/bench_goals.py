@@ -13,9 +13,10 @@ Per goal it prints the time to goal, the final error, the largest step of the
 reference (a regulator's step to the goal; 0 without one), the ball's largest and 95th
 percentile jerk from the true state (:mod:`gracenav.execution.smoothness`) and the
 largest lean; then the medians. Run it at two commits to compare two ways of ending a
-task. Progress goes to stderr, the table to stdout.
+task. ``--noise`` puts position noise of that standard deviation (m) on the measured
+state (``simulation.position_noise_std``). Progress goes to stderr, the table to stdout.
 
-    OPENBLAS_NUM_THREADS=1 python bench/bench_goals.py [--goals 24] [--seed 0]
+    OPENBLAS_NUM_THREADS=1 python bench/bench_goals.py [--goals 24] [--seed 0] [--noise 0.005]
 """
 
 from __future__ import annotations
@@ -48,6 +49,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--goals", type=int, default=24, help="goals drawn (default 24)")
     ap.add_argument("--seed", type=int, default=0, help="seed of the draws (default 0)")
+    ap.add_argument(
+        "--noise", type=float, default=0.0, help="position noise std (m; default 0: none)"
+    )
     args = ap.parse_args()
     base = yaml.safe_load(PAIRS.read_text())["scenario"]
     rng = np.random.default_rng(args.seed)
@@ -68,6 +72,8 @@ def main() -> None:
         doc["planner"]["lattice_anchor"] = "map"
         doc["task"]["goal"] = [float(goal[0]), float(goal[1]), 0.0, 0.0]
         doc["task"]["starts"] = [[start[0], start[1], 0.0, 0.0]]
+        if args.noise > 0.0:
+            doc["simulation"] = {**doc.get("simulation", {}), "position_noise_std": args.noise}
         try:
             result = run_scenario(parse_scenario(doc, source=f"goal {k}"))
         except PlanningError:
@@ -97,7 +103,7 @@ def main() -> None:
         )
     reached = [r for r in rows if r["reached"]]
     print(
-        f"goals: {args.goals} drawn (seed {args.seed}), {refused} refused, "
+        f"goals: {args.goals} drawn (seed {args.seed}, noise {args.noise:g} m), {refused} refused, "
         f"{len(reached)} of {len(rows)} run reached"
     )
     if reached:
