@@ -144,15 +144,22 @@ def test_regulator_ends_become_shifts_from_the_same_approach(
         assert term.goal_domain.contains(g)
 
 
-def test_a_goal_off_the_lattice_ends_without_a_step() -> None:
+@pytest.mark.parametrize("noise", [0.0, 0.005])
+def test_a_goal_off_the_lattice_ends_without_a_step(noise: float) -> None:
     """A goal off the map's lattice, 1 cm off the shifts' grid: the shifts and a hold at
     the goal end the task within the settle tolerance of it, the reference never steps
     by more than the grid's half diagonal (the regulator's step to the goal is up to
     0.2 m), and the ball's jerk stays within the shifts' bound (the regulator's step
-    jerks it at 30-40 m/s³)."""
+    jerks it at 30-40 m/s³); with 5 mm of position noise on the measured state too."""
     goal = (1.13 + 0.01, 1.37)
     scenario = parse_scenario(
-        _task(BOX_ROOM, goal, (4.0, 4.25), planner={"cost": "time", "lattice_anchor": "map"}),
+        _task(
+            BOX_ROOM,
+            goal,
+            (4.0, 4.25),
+            planner={"cost": "time", "lattice_anchor": "map"},
+            simulation={"max_time": 60, "position_noise_std": noise, "seed": 3},
+        ),
         source="box.yaml",
     )
     result = run_scenario(scenario)
