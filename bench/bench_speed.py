@@ -25,7 +25,9 @@ stays a bound). ``--design-push J`` sets ``planner.design_push`` (N s; default t
 scenario default, gracenav.library.DEFAULT_DESIGN_PUSH; 0: none) on both measurements:
 the library then keeps room, where it moves faster than 0.8 m/s
 (``gracenav.library.push_fans.FAN_FLOOR``), for the catches of a push of J (with the
-pairs, the campaign's draws are then checked against that library). ``--breakdown``
+pairs, the campaign's draws are then checked against that library);
+``--online-starts`` sets ``planner.online_starts`` on both (starts at rest through one
+maneuver designed and verified at the start; the baseline ignores it). ``--breakdown``
 also prints, per pair, where gracenav's time goes (the start: capture regulators,
 catches, shifts and rest trims before the first lattice maneuver that moves; the
 lattice's maneuvers; the end after the last one), its path against the baseline's, and
@@ -34,7 +36,7 @@ to stderr, the tables to stdout.
 
     OPENBLAS_NUM_THREADS=1 nice -n 5 .venv/bin/python bench/bench_speed.py
         [--trials 20] [--seed N] [--only long|pairs] [--lean-limit-deg 5]
-        [--design-push 8] [--breakdown]
+        [--design-push 8] [--online-starts] [--breakdown]
 """
 
 from __future__ import annotations
@@ -149,7 +151,7 @@ def _print_table(rows: list[dict[str, Any]], lean: tuple[float, float]) -> None:
     )
 
 
-def bench_long(palette: Any, lean_limit: float, seed: int, design_push: float) -> None:
+def bench_long(palette: Any, lean_limit: float, seed: int, planner: dict[str, Any]) -> None:
     from gracenav.model import physical_time_bound
     from gracenav.scenarios import parse_scenario, run_scenario
 
@@ -159,7 +161,7 @@ def bench_long(palette: Any, lean_limit: float, seed: int, design_push: float) -
     for planner in PLANNERS:
         doc = building_scenario(seed)
         doc["planner"]["kind"] = planner
-        doc["planner"]["design_push"] = design_push
+        doc["planner"].update(planner)
         scenario = parse_scenario(doc, source="long task")
         t0 = time.perf_counter()
         print(f"long task: {planner} ...", file=sys.stderr, flush=True)
@@ -267,7 +269,7 @@ def bench_pairs(
     trials: int,
     seed: int | None,
     lean_limit: float,
-    design_push: float,
+    planner: dict[str, Any],
     breakdown: bool = False,
 ) -> None:
     from gracenav.campaign import load_campaign
@@ -278,7 +280,7 @@ def bench_pairs(
     if seed is not None:
         campaign = dataclasses.replace(campaign, seed=seed)
     doc = dict(campaign.scenario)
-    doc["planner"] = {**(doc.get("planner") or {}), "design_push": design_push}
+    doc["planner"] = {**(doc.get("planner") or {}), **planner}
     campaign = dataclasses.replace(campaign, scenario=doc)
     by_planner: dict[str, list[dict[str, Any]]] = {p: [] for p in PLANNERS}
     phases: list[tuple[dict[str, Any], dict[str, Any], dict[str, Any]]] = []
@@ -344,6 +346,12 @@ def main() -> None:
         f"{DEFAULT_DESIGN_PUSH:g}, the scenario default; 0: none)",
     )
     ap.add_argument(
+        "--online-starts",
+        action="store_true",
+        help="planner.online_starts: starts at rest through one maneuver designed and "
+        "verified at the start",
+    )
+    ap.add_argument(
         "--breakdown",
         action="store_true",
         help="pairs: also where gracenav's time and largest jerk lie, pair by pair",
@@ -355,10 +363,13 @@ def main() -> None:
         if args.lean_limit_deg is not None
         else float(PaletteLimits.of(palette).max_lean)
     )
+    planner: dict[str, Any] = {"design_push": args.design_push}
+    if args.online_starts:
+        planner["online_starts"] = True
     if args.only in (None, "long"):
-        bench_long(palette, lean, args.seed if args.seed is not None else 0, args.design_push)
+        bench_long(palette, lean, args.seed if args.seed is not None else 0, planner)
     if args.only in (None, "pairs"):
-        bench_pairs(palette, args.trials, args.seed, lean, args.design_push, args.breakdown)
+        bench_pairs(palette, args.trials, args.seed, lean, planner, args.breakdown)
 
 
 if __name__ == "__main__":

@@ -21,6 +21,7 @@ simulated at once.
 
 from __future__ import annotations
 
+import math
 import time as _time
 import weakref
 from collections.abc import Sequence
@@ -316,6 +317,32 @@ class HybridController:
             return None
         return caught[1], trees[caught[1].approach], CAPTURE, caught[2]
 
+    def _launch(
+        self,
+        x: FloatArray,
+        tree: PolicyTree | LazyPolicyTree,
+        current: int,
+        plan: CapturePlan | None,
+    ) -> CapturePlan | None:
+        """A start through one maneuver designed and verified at the start
+        (:func:`gracenav.execution.launch.launch_plan`) where the start would otherwise
+        take a capture (priced at its plan's cost) or a capture regulator (at its
+        cost-to-go), or nothing (unpriced); None where it does not pay or none is
+        verified."""
+        from gracenav.execution.launch import launch_plan
+
+        if current == CAPTURE and plan is not None:
+            budget = plan.cost
+        elif current >= 0 and self.library.policy(current).policy.capture:
+            budget = float(tree.cost_to_go[current])
+        elif current < 0 and plan is None:
+            budget = math.inf
+        else:
+            return None
+        lean = (float(np.hypot(*x[2:4])), float(np.hypot(*x[6:8])))
+        p = position_state(x, self.radius)
+        return launch_plan(self.library, p, lean, tree.cost_to_go, budget)
+
     def best_policy(self, p: ArrayLike, tree: PolicyTree | LazyPolicyTree) -> int:
         """The policy with the lowest cost-to-go whose S contains ``p`` (−1 if none).
 
@@ -426,6 +453,10 @@ class HybridController:
             plan = self.capture_plan(x, tree)
             if plan is not None:
                 current = CAPTURE
+        if options.online_starts and dyn is None and len(goals) == 1:
+            launched = self._launch(x, tree, current, plan)
+            if launched is not None:
+                plan, current = launched, CAPTURE
         if current < 0 and plan is None and dyn is None and len(goals) == 1:
             # Nor through the goal's own terminals: through any other end of the way.
             other = self._other_end(x, goals[0], capture=options.capture)

@@ -180,6 +180,13 @@ class ExecutionOptions:
         logged as a replan ``policy_left``); 0 never does (a gracenav extension: a
         policy whose domains the sensor noise or the plant keeps leaving is otherwise
         started again after every capture).
+    online_starts : bool
+        At a start at rest that a capture or a capture regulator would take onto the
+        lattice, design and verify one maneuver from the start onto a library cruise
+        trim ahead and take it where it is priced lower
+        (:mod:`gracenav.execution.launch`; a gracenav extension, off by default: each
+        start then plans and verifies up to four maneuvers on the 3D model, about 1 s
+        each).
     """
 
     plant: PlantKind = "model3d"
@@ -196,6 +203,7 @@ class ExecutionOptions:
     settle_tolerance: float = 0.01
     skip_holds: bool = True
     set_aside_exits: int = 2
+    online_starts: bool = False
 
     def __post_init__(self) -> None:
         if self.plant not in PLANT_KINDS:

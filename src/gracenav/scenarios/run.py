@@ -307,6 +307,7 @@ def _execution_options(scenario: Scenario) -> Any:
         resume_from_balancing=scenario.resume_from_balancing,
         capture=scenario.capture,
         sensing=ObstacleSensing(range=scenario.sensing_range),
+        online_starts=scenario.online_starts,
     )
 
 

@@ -123,6 +123,10 @@ class Scenario:
         ``auto`` is ``goal`` for point-to-point tasks without moving obstacles, falling
         back to the map's corner when the task is impossible on the goal's lattice, and
         ``map`` otherwise.
+    online_starts : bool
+        ``planner.online_starts``: a start at rest may take one maneuver designed and
+        verified at the start onto the lattice
+        (:attr:`gracenav.execution.ExecutionOptions.online_starts`); off by default.
     """
 
     name: str
@@ -153,6 +157,7 @@ class Scenario:
     region: Literal["auto", "map", "task"] = "auto"
     region_margin: float = DEFAULT_REGION_MARGIN
     lattice_anchor: Literal["auto", "goal", "map"] = "auto"
+    online_starts: bool = False
 
 
 #: ``planner.lattice_anchor`` values (see :class:`Scenario`).
@@ -285,6 +290,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
             "region",
             "region_margin",
             "lattice_anchor",
+            "online_starts",
         }
     )
     planner_kind = planner.choice("kind", PLANNERS, "gracenav")
@@ -314,6 +320,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
     )
     region = planner.choice("region", REGIONS, "auto")
     lattice_anchor = planner.choice("lattice_anchor", LATTICE_ANCHORS, "auto")
+    online_starts = planner.boolean("online_starts", False)
     region_margin = planner.number(
         "region_margin",
         DEFAULT_REGION_MARGIN,
@@ -423,6 +430,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         region=region,  # type: ignore[arg-type]
         region_margin=region_margin,
         lattice_anchor=lattice_anchor,  # type: ignore[arg-type]
+        online_starts=online_starts,
     )
 
 
