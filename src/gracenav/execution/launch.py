@@ -5,10 +5,12 @@ A task that starts at rest off the lattice reaches it through a capture (a shift
 rest trim, then a maneuver from rest) or a capture regulator. One maneuver from the start
 itself onto the state of a library cruise trim ahead does both at once
 (``bench/bench_starts.py``: 1.875–2.75 s against 3.67–4.20 s). The palette cannot hold
-it (the start is anywhere), so it is made when the task starts, exactly as the palette's
-maneuvers and policies are made: the nonic from rest at the start to the trim's start
-state, the shortest on the palette's duration grid that the shape trajectory planner
-makes feasible on the 3D model within the palette's lean and torque limits
+it (the start is anywhere), so it is made when the task starts as the palette's
+maneuvers and policies are made, in the one frame it runs in (the palette's are planned
+and verified at a second placement too, a quarter turn, since the library places them
+at every quarter turn): the nonic from rest at the start to the trim's start state, the
+shortest on the palette's duration grid that the shape trajectory planner makes
+feasible on the 3D model within the palette's lean and torque limits
 (:mod:`gracenav.primitives.design`); its start domain sized by bisection and verified on
 the 3D model from points on the surface of S (:func:`gracenav.policies.size_policy`), and
 from the still band (:func:`gracenav.policies.catches.verify_still_start`). It is used
