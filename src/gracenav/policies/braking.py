@@ -95,11 +95,7 @@ def braking_primitive(
         v0 = unit * (2.0 * dist / duration)
         ref = NonicReference.between(duration, np.zeros(2), v0, unit * dist, np.zeros(2))
         res = plan_shape_trajectory(ref, params, model="3d")
-        if not (
-            res.converged
-            and res.peak_lean <= options.max_lean
-            and res.peak_torque <= params.torque_limit
-        ):
+        if not res.within(options.max_lean, params.torque_limit):
             continue
         return sampled_with_rest_tail(
             res, duration, options.tail, name=braking_name(speed, direction), start_velocity=v0

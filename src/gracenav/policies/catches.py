@@ -194,8 +194,7 @@ def _plan_to_rest(
         # Too short a T diverges; the result is then rejected, not a user's concern.
         with np.errstate(over="ignore", invalid="ignore"):
             res = plan_shape_trajectory(ref, params, model="3d")
-        ok = res.converged and res.peak_lean <= options.max_lean and res.peak_torque <= torque_limit
-        return res if ok else None
+        return res if res.within(options.max_lean, torque_limit) else None
 
     coarse = 1.0 / 16.0
     t = math.ceil(t_min / _DURATION_STEP - 1e-9) * _DURATION_STEP

@@ -150,11 +150,7 @@ def _plan_pair(
     """Plan a maneuver in its frame and rotated by 90°; None if either is infeasible."""
 
     def feasible(res: ShapePlannerResult) -> bool:
-        return (
-            res.converged
-            and res.peak_lean <= options.max_lean
-            and res.peak_torque <= params.torque_limit
-        )
+        return res.within(options.max_lean, params.torque_limit)
 
     res0 = plan_shape_trajectory(ref, params, model="3d", options=options.planner)
     if not feasible(res0):

@@ -259,3 +259,8 @@ class ShapePlannerResult:
     def converged(self) -> bool:
         """Whether the planner converged."""
         return self.status is ShapePlannerStatus.CONVERGED
+
+    def within(self, max_lean: float, torque_limit: float) -> bool:
+        """Whether the plan is feasible: converged, its lean within ``max_lean`` (rad)
+        and its torque within ``torque_limit`` (N m)."""
+        return self.converged and self.peak_lean <= max_lean and self.peak_torque <= torque_limit
