@@ -268,10 +268,10 @@ class Capture:
         self.options = opts
         self.grid = palette.d / (opts.grid_divisions if opts is not None else 1)
         self.origin = np.asarray(library.origin, dtype=float)
-        step = min(float(library.sweep_step), _SWEEP_STEP)
+        self.sweep_step = min(float(library.sweep_step), _SWEEP_STEP)
         members = []
         for pol in palette.catches:
-            path, reach = swept_discs(pol, step)
+            path, reach = self.swept(pol)
             members.append(
                 _Member(
                     pol,
@@ -290,7 +290,7 @@ class Capture:
         reaches: list[FloatArray] = []
         still: list[bool] = []
         for pol in palette.shifts:
-            path, reach = swept_discs(pol, step)
+            path, reach = self.swept(pol)
             for k in range(4):
                 angle = 0.5 * math.pi * k
                 c, s = math.cos(angle), math.sin(angle)
@@ -369,7 +369,14 @@ class Capture:
         plain = ~self._shift_still
         return float(np.max(self._shift_reach[plain, -1])) if np.any(plain) else math.inf
 
-    def _clear(self, points: FloatArray, reach: FloatArray) -> BoolArray:
+    def swept(self, policy: MotionPolicy) -> tuple[FloatArray, FloatArray]:
+        """Discs whose union holds ``policy``'s swept D' (policy frame, from its start;
+        :func:`gracenav.library.swept_discs` at the captures' sample spacing)."""
+        return swept_discs(policy, self.sweep_step)
+
+    def clear(self, points: FloatArray, reach: FloatArray) -> BoolArray:
+        """Whether each disc (centres ``points``, shape (..., 2); radii ``reach``) grown
+        by the footprint lies in free space, shape ``points.shape[:-1]``."""
         world = self.world_map
         flat = points.reshape(-1, 2)
         ok = world.is_free(flat) & (
@@ -398,7 +405,7 @@ class Capture:
         ]
         ks = np.array([k for k, rows in enumerate(found) if rows is not None], dtype=np.int64)
         if ks.size:
-            clear = np.all(self._clear(q + self._shift_path[ks], self._shift_reach[ks]), axis=1)
+            clear = np.all(self.clear(q + self._shift_path[ks], self._shift_reach[ks]), axis=1)
             for k in ks[clear]:
                 rows = found[int(k)]
                 assert rows is not None
@@ -431,7 +438,7 @@ class Capture:
             return got
         q = self.origin + np.asarray(cell, dtype=float) * self.grid
         ks = np.flatnonzero(~self._shift_still | still)
-        ks = ks[np.all(self._clear(q + self._shift_path[ks], self._shift_reach[ks]), axis=1)]
+        ks = ks[np.all(self.clear(q + self._shift_path[ks], self._shift_reach[ks]), axis=1)]
         ends = self._shift_cells[ks] + np.asarray(cell, dtype=np.int64)
         room = self.world_map.clearance(self.origin + ends * self.grid)
         best: dict[int, _Way] = {}
@@ -468,7 +475,7 @@ class Capture:
             q = self.origin + starts[sel] * self.grid
             ks = plain[sel]
             clear = np.all(
-                self._clear(q[:, None, :] + self._shift_path[ks], self._shift_reach[ks]), axis=1
+                self.clear(q[:, None, :] + self._shift_path[ks], self._shift_reach[ks]), axis=1
             )
             for n in sel[clear]:
                 rows = found[int(n)]
@@ -492,7 +499,7 @@ class Capture:
         starts = np.asarray(cell, dtype=np.int64) - self._shift_cells[plain]
         q = self.origin + starts * self.grid
         clear = np.all(
-            self._clear(q[:, None, :] + self._shift_path[plain], self._shift_reach[plain]), axis=1
+            self.clear(q[:, None, :] + self._shift_path[plain], self._shift_reach[plain]), axis=1
         )
         ks, starts, q = plain[clear], starts[clear], q[clear]
         room = self.world_map.clearance(q)
@@ -538,7 +545,7 @@ class Capture:
         cells = base + _NEIGHBOURS
         xy = self.origin + cells * self.grid
         dist = np.hypot(*(xy - g[:2]).T)
-        hold_path, hold_reach = swept_discs(hold, min(float(library.sweep_step), _SWEEP_STEP))
+        hold_path, hold_reach = self.swept(hold)
         at_goal = self._goal_regulator(g)
         for n in np.argsort(dist, kind="stable"):
             if dist[n] > _TERMINAL_REACH * self.grid + 1e-12:
@@ -547,7 +554,7 @@ class Capture:
             end = PlacedPolicy(hold, 0.0, xy[n].copy())
             if not end.goal_domain.contains(g):
                 continue
-            if not np.all(self._clear(xy[n] + hold_path, hold_reach)):
+            if not np.all(self.clear(xy[n] + hold_path, hold_reach)):
                 continue
             holds = [*at_goal, (end, (hold_path, hold_reach))]
             ways = (
@@ -580,10 +587,9 @@ class Capture:
             (p for p in library.palette.policies if p.capture),
             key=lambda p: p.start_radii.position,
         )
-        step = min(float(library.sweep_step), _SWEEP_STEP)
         for reg in regs:
-            path, reach = swept_discs(reg, step)
-            if np.all(self._clear(g[:2] + path, reach)):
+            path, reach = self.swept(reg)
+            if np.all(self.clear(g[:2] + path, reach)):
                 return [(PlacedPolicy(reg, 0.0, g[:2].copy()), (path, reach))]
         return []
 
@@ -750,7 +756,7 @@ class Capture:
         for rank, value, m, heading, start, cell in self._candidates(st, classes, flat):
             c, s = math.cos(heading), math.sin(heading)
             rot = np.array([[c, -s], [s, c]])
-            if not np.all(self._clear(start + m.path @ rot.T, m.reach)):
+            if not np.all(self.clear(start + m.path @ rot.T, m.reach)):
                 continue
             still = m.lean_class == STILL
             ways = self._handovers(cell, still)

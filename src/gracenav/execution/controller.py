@@ -35,6 +35,7 @@ from gracenav.errors import ConfigError, PlanningError
 from gracenav.execution.capture import CapturePlan, Terminal, capture_for
 from gracenav.execution.episode import Episode, ExecutionLog, drive
 from gracenav.execution.goals import Goals
+from gracenav.execution.launch import launch_plan
 from gracenav.execution.obstacles import ObstacleTracker
 from gracenav.execution.supervisor import BALANCING_MARGIN, Supervisor
 from gracenav.execution.types import (
@@ -339,8 +340,6 @@ class HybridController:
         when that is skipped. (The trees price every hold in full; compared in full,
         the capture of ``random_pairs.yaml`` trial 1, which runs 0.4 s faster than the
         maneuver, was priced 1.6 s higher.)"""
-        from gracenav.execution.launch import launch_plan
-
         lib = self.library
         if current == CAPTURE and plan is not None:
             budget = plan.cost

@@ -29,20 +29,21 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from gracenav.execution.capture import CapturePlan, PlacedPolicy
-from gracenav.policies import PrimitiveKind
+from gracenav.execution.capture import CapturePlan, PlacedPolicy, capture_for
+from gracenav.policies import PrimitiveKind, domain_shape, size_policy
+from gracenav.policies.catches import verify_still_start
+from gracenav.policies.primitive import SampledPrimitive
+from gracenav.primitives.motion import Maneuver, PrimitiveReport
+from gracenav.primitives.references import NonicReference
+from gracenav.primitives.shape_planner import plan_shape_trajectory
 
 if TYPE_CHECKING:
     from gracenav.library import PolicyLibrary
     from gracenav.palette import Palette
-    from gracenav.primitives.motion import Maneuver
 
 __all__ = ["LaunchOptions", "launch_plan"]
 
 FloatArray = NDArray[np.float64]
-
-#: Spacing (m) of the swept D' samples checked against the map (the captures' own).
-_SWEEP_STEP = 0.004
 
 
 @dataclass(frozen=True)
@@ -82,11 +83,6 @@ def launch_plan(
         only within the still band it is verified from (``CatchOptions.still_lean``).
         ``cost_to_go`` is the tree's, by library row.
     """
-    from gracenav.library.sweeps import swept_discs
-    from gracenav.policies import domain_shape, size_policy
-    from gracenav.policies.catches import verify_still_start
-    from gracenav.policies.primitive import SampledPrimitive
-
     opts = options if options is not None else LaunchOptions()
     palette = library.palette
     catch = palette.options.catch
@@ -107,6 +103,7 @@ def launch_plan(
     picks = sorted(zip(price[near].tolist(), rows[near].tolist(), strict=True))
     gains, vopts = palette.gains, palette.options
     shape = domain_shape(gains, horizon=vopts.shape_horizon)
+    capture = capture_for(library)
     best: CapturePlan | None = None
     for _, row in picks[: opts.candidates]:
         row = int(row)
@@ -126,9 +123,8 @@ def launch_plan(
             continue
         if not library.policy(row).start_domain.contains_domain(placed.goal_domain):
             continue
-        path, reach = swept_discs(policy, _SWEEP_STEP)
-        room = library.world_map.clearance(start + path) - library.footprint_radius - reach
-        if not bool(np.all(room >= 0.0)):
+        path, reach = capture.swept(policy)
+        if not bool(np.all(capture.clear(start + path, reach))):
             continue
         cost = policy.duration + float(cost_to_go[row])
         if cost < budget and (best is None or cost < best.cost):
@@ -142,10 +138,6 @@ def _design(
     """The shortest nonic on the palette's duration grid from rest at ``start`` to
     ``end`` at ``velocity`` that is feasible on the 3D model (None if none is within
     the palette's longest maneuver)."""
-    from gracenav.primitives.motion import Maneuver, PrimitiveReport
-    from gracenav.primitives.references import NonicReference
-    from gracenav.primitives.shape_planner import plan_shape_trajectory
-
     options = palette.primitive_options
     params = palette.params
     zero = np.zeros(2)
@@ -163,11 +155,7 @@ def _design(
         if np.min(vel @ u) < -options.max_backward_speed:
             continue  # no running backwards against the trim's direction
         res = plan_shape_trajectory(ref, params, model="3d", options=options.planner)
-        if not (
-            res.converged
-            and res.peak_lean <= options.max_lean
-            and res.peak_torque <= params.torque_limit
-        ):
+        if not res.within(options.max_lean, params.torque_limit):
             continue
         report = PrimitiveReport.from_result(res)
         return Maneuver(
