@@ -66,6 +66,8 @@ def shift_duration(disp: np.ndarray, params: BallbotParams, bound: float) -> flo
     t = 1.0
     while ball_jerk(NonicReference.between(t, zero, zero, disp, zero), params) > bound:
         t += 1.0 / 128.0
+        if t > 60.0:  # the nonic's jerk falls as 1/T³: never reached for a sane bound
+            raise ValueError(f"no shift over {disp} within {bound} m/s³ of ball jerk")
     return t
 
 
