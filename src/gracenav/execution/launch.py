@@ -33,6 +33,7 @@ from gracenav.execution.capture import CapturePlan, PlacedPolicy, capture_for
 from gracenav.policies import PrimitiveKind, domain_shape, size_policy
 from gracenav.policies.catches import verify_still_start
 from gracenav.policies.primitive import SampledPrimitive
+from gracenav.primitives.design import passes_screen
 from gracenav.primitives.motion import Maneuver, PrimitiveReport
 from gracenav.primitives.references import NonicReference
 from gracenav.primitives.shape_planner import plan_shape_trajectory
@@ -59,7 +60,8 @@ class LaunchOptions:
         Largest distance (m) of the trim's start point across its direction of travel.
     candidates : int
         Trims designed and verified at most, cheapest first by cost-to-go and distance
-        (each takes about 1 s: a 3D plan and the verification).
+        (a 3D plan, about 0.02 s, and the sizing of S, about 0.8 s, each; the still
+        band's verification, about 2 s, only for one that would be chosen).
     """
 
     ahead: tuple[float, float] = (0.45, 1.0)
@@ -112,11 +114,13 @@ def launch_plan(
         maneuver = _design(start, library.start_xy[row], library.start_state[row, 2:4], palette)
         if maneuver is None:
             continue
+        # The cheap tests first: its price, then (sized) its domains and its sweep; the
+        # verification from the still band (the costliest, about 2 s) last.
+        cost = maneuver.duration + float(cost_to_go[row])
+        if cost >= budget or (best is not None and cost >= best.cost):
+            continue
         policy = size_policy(SampledPrimitive.from_primitive(maneuver), gains, vopts, shape=shape)
         if policy.report is None or not policy.report.passed:
-            continue
-        policy = verify_still_start(policy, vopts)
-        if not policy.starts_from_still_band:
             continue
         placed = PlacedPolicy(policy, 0.0, start.copy())
         if not placed.start_domain.contains(p):
@@ -126,9 +130,12 @@ def launch_plan(
         path, reach = capture.swept(policy)
         if not bool(np.all(capture.clear(start + path, reach))):
             continue
-        cost = policy.duration + float(cost_to_go[row])
-        if cost < budget and (best is None or cost < best.cost):
-            best = CapturePlan(catch=placed, shifts=(), rest_row=row, cost=cost)
+        policy = verify_still_start(policy, vopts)
+        if not policy.starts_from_still_band:
+            continue
+        best = CapturePlan(
+            catch=PlacedPolicy(policy, 0.0, start.copy()), shifts=(), rest_row=row, cost=cost
+        )
     return best
 
 
@@ -154,6 +161,8 @@ def _design(
             continue
         if np.min(vel @ u) < -options.max_backward_speed:
             continue  # no running backwards against the trim's direction
+        if not passes_screen(ref, params, options):
+            continue  # the palette's screen: the 3D model only where it may pass
         res = plan_shape_trajectory(ref, params, model="3d", options=options.planner)
         if not res.within(options.max_lean, params.torque_limit):
             continue

@@ -38,7 +38,7 @@ from gracenav.primitives.shape_planner import (
     plan_shape_trajectory,
 )
 
-__all__ = []
+__all__ = ["passes_screen"]
 
 
 def _level_cells(level: int, options: PrimitiveSetOptions) -> int:
@@ -124,6 +124,15 @@ def _linear_estimate(ref: NonicReference, params: BallbotParams) -> tuple[float,
     return float(np.max(np.hypot(ph[:, 0], ph[:, 1]))), float(np.max(np.abs(tau)))
 
 
+def passes_screen(ref: NonicReference, params: BallbotParams, options: PrimitiveSetOptions) -> bool:
+    """Whether a reference is worth planning on the 3D model: the linearised model's
+    flat-output solution keeps the lean and the torque within ``options.max_lean`` and
+    the torque limit, with :data:`_SCREEN_MARGIN` to spare (cheap; the 3D model's peaks
+    differ from it by < 1 %)."""
+    lean, tau = _linear_estimate(ref, params)
+    return max(lean / options.max_lean, tau / params.torque_limit) <= 1.0 + _SCREEN_MARGIN
+
+
 def _reference_ok(
     ref: NonicReference, v0: FloatArray, v1: FloatArray, options: PrimitiveSetOptions
 ) -> bool:
@@ -181,22 +190,18 @@ def _plan_maneuver(
     disp = np.array(cells, dtype=float) * d
     zero = np.zeros(2)
     step = options.duration_step
-    limit_lean, limit_tau = options.max_lean, params.torque_limit
     grid = [m * step for m in range(1, math.floor(options.max_duration / step + 1e-9) + 1)]
 
     def ref_at(duration: float) -> NonicReference:
         return NonicReference.between(duration, zero, v0, disp, v1)
 
     def candidates() -> Iterator[float]:
-        # Screen the grid with the linearised model's flat-output solution (cheap); plan
-        # the 3D model from the shortest duration whose estimate is within a small margin
-        # of the limits (the 3D model's peaks differ from the estimate by < 1 %).
+        # Plan the 3D model from the shortest duration that passes the screen.
         for duration in grid:
             ref = ref_at(duration)
             if not _reference_ok(ref, v0, v1, options):
                 continue
-            lean, tau = _linear_estimate(ref, params)
-            if max(lean / limit_lean, tau / limit_tau) <= 1.0 + _SCREEN_MARGIN:
+            if passes_screen(ref, params, options):
                 yield duration
 
     chosen: tuple[float, tuple[ShapePlannerResult, ShapePlannerResult]] | None = None
