@@ -185,8 +185,8 @@ class ExecutionOptions:
         lattice, design and verify one maneuver from the start onto a library cruise
         trim ahead and take it where it is priced lower
         (:mod:`gracenav.execution.launch`; a gracenav extension, off by default: each
-        start then plans and verifies up to four maneuvers on the 3D model, about 1 s
-        each).
+        start then plans and verifies up to four maneuvers on the 3D model, up to about
+        3 s measured on the random pairs).
     """
 
     plant: PlantKind = "model3d"
