@@ -116,7 +116,7 @@ def _without_catch(lib, fan, capture, rows) -> tuple[int, int]:
                 for _, _, m, heading, start, _ in capture._candidates(state, ("pushed",), state):
                     c, s = np.cos(heading), np.sin(heading)
                     path = start + m.path @ np.array([[c, -s], [s, c]]).T
-                    if np.all(capture._clear(path, m.reach)):
+                    if np.all(capture.clear(path, m.reach)):
                         clear = True
                         break
                 missing += not clear
