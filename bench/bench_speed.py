@@ -151,7 +151,7 @@ def _print_table(rows: list[dict[str, Any]], lean: tuple[float, float]) -> None:
     )
 
 
-def bench_long(palette: Any, lean_limit: float, seed: int, planner: dict[str, Any]) -> None:
+def bench_long(palette: Any, lean_limit: float, seed: int, keys: dict[str, Any]) -> None:
     from gracenav.model import physical_time_bound
     from gracenav.scenarios import parse_scenario, run_scenario
 
@@ -161,7 +161,7 @@ def bench_long(palette: Any, lean_limit: float, seed: int, planner: dict[str, An
     for planner in PLANNERS:
         doc = building_scenario(seed)
         doc["planner"]["kind"] = planner
-        doc["planner"].update(planner)
+        doc["planner"].update(keys)
         scenario = parse_scenario(doc, source="long task")
         t0 = time.perf_counter()
         print(f"long task: {planner} ...", file=sys.stderr, flush=True)
