@@ -23,13 +23,18 @@ def assert_holds_from_unchosen_points(
     interior: int,
     seed: int,
     push_leans: PushLeanTable | None = None,
+    placements: tuple[int, ...] = (0, 1),
 ) -> None:
     """``pol`` verified again on the 3D model from ``boundary_points`` on the surface
-    of its S (another set than its own) at both placements (each also started with the
-    leans of ``push_leans``), and run from ``interior`` random states inside S (uniform
-    in the ellipsoid): every run stays in D' and ends in G."""
+    of its S (another set than its own) at both placements, or at ``placements``
+    (each also started with the leans of ``push_leans``), and run from ``interior``
+    random states inside S (uniform in the ellipsoid): every run stays in D' and ends
+    in G."""
     rep = verify_placements(
-        pol, dataclasses.replace(options, boundary_points=boundary_points), push_leans=push_leans
+        pol,
+        dataclasses.replace(options, boundary_points=boundary_points),
+        push_leans=push_leans,
+        placements=placements,
     )
     assert rep.passed, rep
     rng = np.random.default_rng(seed)

@@ -17,7 +17,9 @@ from gracenav.policies import (
     VerificationOptions,
     domain_shape,
     rotate_pairs,
+    size_policy,
     switch_torque_jumps,
+    verify_placements,
     verify_policy,
 )
 from gracenav.policies.domains import correlated_shape
@@ -255,3 +257,30 @@ def test_verify_still_start_checks_only_policies_that_start_at_rest(palette) -> 
         other = dataclasses.replace(palette[name], still_report=None)
         assert verify_still_start(other, opts) is other
     assert verify_still_start(pol, dataclasses.replace(opts, catch=None)) is pol
+
+
+def test_sizing_keeps_to_a_size_test_and_one_placement(palette) -> None:
+    """``size_policy``'s ``fits``: the largest verified S that also passes the test (a
+    bound on S/G here), never a verification of a size that fails it, None where even
+    S = G fails it; ``placements=(0,)`` verifies the one frame, half the runs."""
+    prim = palette["rest_to_rest_1_0"].primitive
+    opts = dataclasses.replace(palette.options, boundary_points=16, bisection_steps=4)
+    free = size_policy(prim, palette.gains, opts)
+    assert free.report is not None and free.report.passed
+    tried: list[float] = []
+
+    def small(pol) -> bool:  # type: ignore[no-untyped-def]
+        tried.append(pol.scale)
+        return bool(pol.scale <= 1.3)
+
+    sized = size_policy(prim, palette.gains, opts, fits=small)
+    assert sized.report is not None and sized.report.passed
+    assert 1.3 - (opts.max_scale - 1.0) / 2**opts.bisection_steps < sized.scale <= 1.3
+    assert sized.scale <= free.scale
+    assert len(tried) == opts.bisection_steps + 2
+    none = size_policy(prim, palette.gains, opts, fits=lambda pol: False)
+    assert none.report is None
+    one = verify_placements(sized, opts, placements=(0,))
+    both = verify_placements(sized, opts)
+    assert one.passed and both.passed and 2 * one.runs == both.runs
+    assert one.max_outer_value <= both.max_outer_value

@@ -417,7 +417,11 @@ def band_leans(lean: float, rate: float) -> PushLeanTable:
 
 
 def verify_still_start(
-    policy: MotionPolicy, options: VerificationOptions, *, params: BallbotParams | None = None
+    policy: MotionPolicy,
+    options: VerificationOptions,
+    *,
+    params: BallbotParams | None = None,
+    placements: tuple[int, ...] = (0, 1),
 ) -> MotionPolicy:
     """``policy`` with its :attr:`~gracenav.policies.MotionPolicy.still_report` when it
     starts at rest and is neither a rest trim nor a capture policy: verified at both
@@ -428,7 +432,8 @@ def verify_still_start(
 
     A hold (a capture's last shift, a capture regulator) ends with the lean within that
     band long before its own end; a policy verified so may start from it then, by the
-    same rule as every switch (its S holds the state)."""
+    same rule as every switch (its S holds the state). ``placements`` as in
+    :func:`~gracenav.policies.verify_placements`."""
     cat = options.catch
     prim = policy.primitive
     if (
@@ -439,7 +444,11 @@ def verify_still_start(
     ):
         return policy
     report = verify_placements(
-        policy, options, params=params, push_leans=band_leans(*cat.still_lean)
+        policy,
+        options,
+        params=params,
+        push_leans=band_leans(*cat.still_lean),
+        placements=placements,
     )
     return replace(policy, still_report=report)
 

@@ -125,13 +125,16 @@ def verify_placements(
     params: BallbotParams | None = None,
     push_leans: PushLeanTable | None = None,
     boundary_points: int | None = None,
+    placements: tuple[int, ...] = (0, 1),
 ) -> VerificationReport:
     """Verify a policy at every placement instantiation uses (``push_leans`` and
     ``boundary_points`` as in :func:`verify_policy`).
 
     Instantiation places policies at 0°, 90°, 180° and 270°; 180° is an exact
     symmetry of the 3D model, so the 0° and 90° placements cover all four. Returns
-    the combined report (passes only if both pass).
+    the combined report (passes only if both pass). ``placements`` (quarter turns)
+    narrows this for a policy that only ever runs in its own frame, ``(0,)``: one
+    designed where it runs (:mod:`gracenav.execution.launch`).
     """
     reports = [
         verify_policy(
@@ -141,7 +144,7 @@ def verify_placements(
             push_leans=push_leans,
             boundary_points=boundary_points,
         )
-        for k in (0, 1)
+        for k in placements
     ]
     return combined_report(*reports)
 
@@ -153,6 +156,8 @@ def size_policy(
     *,
     shape: DomainShape | None = None,
     progress: Callable[[], None] | None = None,
+    fits: Callable[[MotionPolicy], bool] | None = None,
+    placements: tuple[int, ...] = (0, 1),
 ) -> MotionPolicy:
     """Build the policy of ``primitive`` with the largest start domain that verifies.
 
@@ -167,11 +172,19 @@ def size_policy(
         Default: :func:`domain_shape` of ``gains``.
     progress : callable, optional
         Called after each verification.
+    fits : callable, optional
+        A test a size must also pass, monotone in the size (a larger S fails where a
+        smaller one does), checked before the size's verification: e.g. that the swept
+        D' is clear of a map. A size that fails it is treated as one that fails
+        verification, without running it.
+    placements : tuple of int
+        Quarter turns it is verified at (:func:`verify_placements`).
 
     Returns
     -------
     MotionPolicy
-        With ``report.passed`` False if even S = G fails.
+        With ``report.passed`` False if even S = G fails (or does not fit: then
+        ``report`` is None).
     """
     options = options if options is not None else VerificationOptions()
     gains = gains if gains is not None else design_gains()
@@ -181,7 +194,9 @@ def size_policy(
 
     def attempt(scale: float) -> MotionPolicy:
         pol = MotionPolicy(primitive, gains, goal.scaled(scale), goal, factors, shape.correlation)
-        report = verify_placements(pol, options)
+        if fits is not None and not fits(pol):
+            return pol
+        report = verify_placements(pol, options, placements=placements)
         if progress is not None:
             progress()
         return replace(pol, report=report)
