@@ -24,8 +24,10 @@ median time to goal and the median wall time per task.
 
     OPENBLAS_NUM_THREADS=1 python bench/bench_maps.py [--tasks 8] [--seed 0]
         [--classes forest forest_tight warehouse office] [--max-halvings N]
-        [--design-push 8]
+        [--design-push 8] [--online-starts]
 
+``--online-starts`` sets ``planner.online_starts`` of every task (starts at rest
+through one maneuver designed at the start; the decoupled baseline ignores it).
 ``--design-push J`` sets ``planner.design_push`` (N s; default the scenario default,
 gracenav.library.DEFAULT_DESIGN_PUSH; 0: none) of every task, both planners (the
 decoupled baseline ignores it); ``GRACENAV_PALETTE=FILE`` runs another palette.
@@ -109,6 +111,7 @@ def run_one(
     planner: str,
     max_halvings: int | None = None,
     design_push: float = DEFAULT_DESIGN_PUSH,
+    online_starts: bool = False,
 ) -> dict[str, Any]:
     """One task through run_scenario: outcome, time to goal, contact, wall time."""
     data: dict[str, Any] = {
@@ -126,6 +129,8 @@ def run_one(
     if max_halvings is not None:
         data["planner"]["max_halvings"] = max_halvings
     data["planner"]["design_push"] = design_push
+    if online_starts:
+        data["planner"]["online_starts"] = True
     if planner == "decoupled":
         data["planner"]["kind"] = "decoupled"
     t0 = time.perf_counter()
@@ -166,6 +171,12 @@ def main() -> None:
         default=DEFAULT_DESIGN_PUSH,
         help=f"planner.design_push (N s) of every task (default {DEFAULT_DESIGN_PUSH:g}; 0: none)",
     )
+    ap.add_argument(
+        "--online-starts",
+        action="store_true",
+        help="planner.online_starts of every task: starts at rest through one maneuver "
+        "designed and verified at the start",
+    )
     args = ap.parse_args()
     print("class      planner     tasks  reached  refused  contacts  median_time_s  median_wall_s")
     with tempfile.TemporaryDirectory() as tmp:
@@ -179,7 +190,9 @@ def main() -> None:
             by_planner: dict[str, list[dict[str, Any]]] = {}
             for planner in ("gracenav", "decoupled"):
                 rows = by_planner[planner] = [
-                    run_one(p, s, g, planner, args.max_halvings, args.design_push)
+                    run_one(
+                        p, s, g, planner, args.max_halvings, args.design_push, args.online_starts
+                    )
                     for p, (_, s, g) in zip(paths, drawn, strict=True)
                 ]
                 reached = sum(1 for r in rows if r.get("reached"))

@@ -13,7 +13,10 @@ from reverify import assert_holds_from_unchosen_points
 from gracenav.campaign import load_campaign
 from gracenav.campaign.runner import trial_result
 from gracenav.execution import CAPTURE, EventReason, ExecutionOptions
+from gracenav.execution.capture import capture_for
+from gracenav.execution.launch import _design, _shortest
 from gracenav.policies import PrimitiveKind
+from gracenav.policies.catches import band_leans
 
 ROOT = Path(__file__).resolve().parent.parent
 PAIRS = ROOT / "examples" / "campaigns" / "random_pairs.yaml"
@@ -57,6 +60,70 @@ def test_a_start_takes_one_verified_maneuver_onto_a_cruise_trim() -> None:
     assert switch.reason is EventReason.GRACEFUL and switch.to_policy == plan.rest_row
     assert switch.time == pytest.approx(launch.duration, abs=1.5 / 1024)
     assert launch.policy.starts_from_still_band
+    # Verified in the frame it runs in only: checked again there, from its S and from
+    # the still band, at points its verification did not choose.
+    opts = lib.palette.options
     assert_holds_from_unchosen_points(
-        launch.policy, lib.palette.options, boundary_points=24, interior=6, seed=5
+        launch.policy, opts, boundary_points=24, interior=6, seed=5, placements=(0,)
     )
+    assert_holds_from_unchosen_points(
+        launch.policy,
+        opts,
+        boundary_points=24,
+        interior=0,
+        seed=5,
+        push_leans=band_leans(*opts.catch.still_lean),
+        placements=(0,),
+    )
+
+
+@pytest.mark.slow
+def test_a_start_near_obstacles_takes_a_smaller_start_domain() -> None:
+    """Trial 15 of the random pairs starts 0.4 m from the room's obstacles: the maneuver's
+    largest verified S sweeps a D' that the footprint does not fit beside them, so S is
+    sized down until it does (rather than no maneuver), and the task still ends sooner,
+    without touching anything."""
+    row0, _ = trial_result(_campaign(False), 15, "gracenav")
+    row, result = trial_result(_campaign(True), 15, "gracenav")
+    assert row0["reached_goal"] and row["reached_goal"]
+    assert row["min_clearance_m"] >= 0.0 and row["balancing_s"] == 0.0
+    assert row["time_s"] <= row0["time_s"] - 1.0
+    ep, lib = result.episodes[0], result.library
+    (t0, plan), *_ = ep.captures
+    assert t0 == 0.0 and plan.catch.policy.name == "launch"
+    launch = plan.catch
+    opts = lib.palette.options
+    assert 1.0 <= launch.policy.scale < opts.max_scale
+    capture = capture_for(lib)
+
+    def clear(pol) -> bool:  # type: ignore[no-untyped-def]
+        path, reach = capture.swept(pol)
+        return bool(np.all(capture.clear(launch.start_xy + path, reach)))
+
+    assert clear(launch.policy)
+    largest = launch.policy.with_start_radii(launch.policy.goal_radii.scaled(opts.max_scale))
+    assert not clear(largest)
+    start = np.array([row["start_x"], row["start_y"], 0.0, 0.0])
+    assert launch.start_domain.contains(start)
+    assert lib.policy(plan.rest_row).start_domain.contains_domain(launch.goal_domain)
+
+
+def test_the_kinematic_bound_is_a_lower_bound_on_the_design(palette) -> None:
+    """``_shortest`` (speed and direction alone) never exceeds the designed maneuver's
+    duration, and a design started from it is the design started from zero."""
+    v = np.array([[0.5, 0.0], [0.0, -0.5], [0.35359116, 0.35359116], [-0.35359116, 0.35359116]])
+    ends = [(0.6, 0.1), (1.2, -0.3), (0.9, 0.45), (0.45, 0.0), (1.8, 0.2)]
+    designed = 0
+    for vel in v:
+        u = vel / np.hypot(*vel)
+        for a, c in ends:
+            end = a * u + c * np.array([-u[1], u[0]])
+            bound = _shortest(np.zeros(2), end, vel, palette)
+            full = _design(np.zeros(2), end, vel, palette, 0.0)
+            if full is None:
+                continue
+            designed += 1
+            assert bound <= full.duration
+            again = _design(np.zeros(2), end, vel, palette, bound)
+            assert again is not None and again.duration == full.duration
+    assert designed >= 12
