@@ -24,10 +24,10 @@ median time to goal and the median wall time per task.
 
     OPENBLAS_NUM_THREADS=1 python bench/bench_maps.py [--tasks 8] [--seed 0]
         [--classes forest forest_tight warehouse office] [--max-halvings N]
-        [--design-push 8] [--online-starts]
+        [--design-push 8] [--no-online-starts]
 
-``--online-starts`` sets ``planner.online_starts`` of every task (starts at rest
-through one maneuver designed at the start; the decoupled baseline ignores it).
+``--no-online-starts`` sets ``planner.online_starts: false`` of every task (no start at
+rest through one maneuver designed at the start; the decoupled baseline ignores it).
 ``--design-push J`` sets ``planner.design_push`` (N s; default the scenario default,
 gracenav.library.DEFAULT_DESIGN_PUSH; 0: none) of every task, both planners (the
 decoupled baseline ignores it); ``GRACENAV_PALETTE=FILE`` runs another palette.
@@ -111,7 +111,7 @@ def run_one(
     planner: str,
     max_halvings: int | None = None,
     design_push: float = DEFAULT_DESIGN_PUSH,
-    online_starts: bool = False,
+    online_starts: bool = True,
 ) -> dict[str, Any]:
     """One task through run_scenario: outcome, time to goal, contact, wall time."""
     data: dict[str, Any] = {
@@ -129,8 +129,8 @@ def run_one(
     if max_halvings is not None:
         data["planner"]["max_halvings"] = max_halvings
     data["planner"]["design_push"] = design_push
-    if online_starts:
-        data["planner"]["online_starts"] = True
+    if not online_starts:
+        data["planner"]["online_starts"] = False
     if planner == "decoupled":
         data["planner"]["kind"] = "decoupled"
     t0 = time.perf_counter()
@@ -172,10 +172,10 @@ def main() -> None:
         help=f"planner.design_push (N s) of every task (default {DEFAULT_DESIGN_PUSH:g}; 0: none)",
     )
     ap.add_argument(
-        "--online-starts",
+        "--no-online-starts",
         action="store_true",
-        help="planner.online_starts of every task: starts at rest through one maneuver "
-        "designed and verified at the start",
+        help="planner.online_starts: false in every task (no start at rest through one "
+        "maneuver designed and verified at the start)",
     )
     args = ap.parse_args()
     print("class      planner     tasks  reached  refused  contacts  median_time_s  median_wall_s")
@@ -191,7 +191,13 @@ def main() -> None:
             for planner in ("gracenav", "decoupled"):
                 rows = by_planner[planner] = [
                     run_one(
-                        p, s, g, planner, args.max_halvings, args.design_push, args.online_starts
+                        p,
+                        s,
+                        g,
+                        planner,
+                        args.max_halvings,
+                        args.design_push,
+                        not args.no_online_starts,
                     )
                     for p, (_, s, g) in zip(paths, drawn, strict=True)
                 ]

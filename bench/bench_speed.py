@@ -26,8 +26,8 @@ scenario default, gracenav.library.DEFAULT_DESIGN_PUSH; 0: none) on both measure
 the library then keeps room, where it moves faster than 0.8 m/s
 (``gracenav.library.push_fans.FAN_FLOOR``), for the catches of a push of J (with the
 pairs, the campaign's draws are then checked against that library);
-``--online-starts`` sets ``planner.online_starts`` on both (starts at rest through one
-maneuver designed and verified at the start; the baseline ignores it). ``--breakdown``
+``--no-online-starts`` sets ``planner.online_starts: false`` on both (no start at rest
+through one maneuver designed and verified at the start; the baseline ignores it). ``--breakdown``
 also prints, per pair, where gracenav's time goes (the start: capture regulators,
 catches, shifts and rest trims before the first lattice maneuver that moves; the
 lattice's maneuvers; the end after the last one), its path against the baseline's, and
@@ -36,7 +36,7 @@ to stderr, the tables to stdout.
 
     OPENBLAS_NUM_THREADS=1 nice -n 5 .venv/bin/python bench/bench_speed.py
         [--trials 20] [--seed N] [--only long|pairs] [--lean-limit-deg 5]
-        [--design-push 8] [--online-starts] [--breakdown]
+        [--design-push 8] [--no-online-starts] [--breakdown]
 """
 
 from __future__ import annotations
@@ -346,10 +346,10 @@ def main() -> None:
         f"{DEFAULT_DESIGN_PUSH:g}, the scenario default; 0: none)",
     )
     ap.add_argument(
-        "--online-starts",
+        "--no-online-starts",
         action="store_true",
-        help="planner.online_starts: starts at rest through one maneuver designed and "
-        "verified at the start",
+        help="planner.online_starts: false (no start at rest through one maneuver designed "
+        "and verified at the start)",
     )
     ap.add_argument(
         "--breakdown",
@@ -364,8 +364,8 @@ def main() -> None:
         else float(PaletteLimits.of(palette).max_lean)
     )
     planner: dict[str, Any] = {"design_push": args.design_push}
-    if args.online_starts:
-        planner["online_starts"] = True
+    if args.no_online_starts:
+        planner["online_starts"] = False
     if args.only in (None, "long"):
         bench_long(palette, lean, args.seed if args.seed is not None else 0, planner)
     if args.only in (None, "pairs"):

@@ -16,7 +16,14 @@ the shift and the start (the still band) is not counted, which favours the shift
 
 Prints, per offset, the two ways' durations and their difference, then the medians.
 
-    OPENBLAS_NUM_THREADS=1 python bench/bench_starts.py [--step 0.125]
+``--pairs N`` then runs gracenav on the first N trials of
+``examples/campaigns/random_pairs.yaml`` (online starts on, as by default) and times
+the design of each online start (:func:`gracenav.execution.launch.launch_plan`, wall
+time, every call: the campaign's check of the pair, the task's check and its run; a
+task's check and run share one design): calls, starts that took one, median, 90th
+percentile and largest time.
+
+    OPENBLAS_NUM_THREADS=1 python bench/bench_starts.py [--step 0.125] [--pairs 20]
 """
 
 from __future__ import annotations
@@ -74,6 +81,12 @@ def shift_duration(disp: np.ndarray, params: BallbotParams, bound: float) -> flo
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--step", type=float, default=0.125, help="offset grid (m)")
+    ap.add_argument(
+        "--pairs",
+        type=int,
+        default=0,
+        help="also time the online starts' design on the first N random pairs",
+    )
     args = ap.parse_args()
     params = BallbotParams()
     options = PrimitiveSetOptions()
@@ -116,6 +129,53 @@ def main() -> None:
             f"saved median {statistics.median(saved):.3f} s (least {min(saved):.3f}, most "
             f"{max(saved):.3f})"
         )
+    if args.pairs:
+        time_starts(args.pairs)
+
+
+def time_starts(trials: int) -> None:
+    """Wall time of every online start's design on the first ``trials`` random pairs."""
+    import dataclasses
+    import sys
+    import time
+    from pathlib import Path
+    from typing import Any
+
+    import gracenav.execution.controller as controller
+    from gracenav.campaign import load_campaign
+    from gracenav.campaign.runner import trial_result
+
+    design = controller.launch_plan
+    seconds: list[float] = []
+    taken = 0
+
+    def timed(*args: Any, **kwargs: Any) -> Any:
+        nonlocal taken
+        t0 = time.perf_counter()
+        plan = design(*args, **kwargs)
+        seconds.append(time.perf_counter() - t0)
+        taken += plan is not None
+        return plan
+
+    campaign = load_campaign(
+        Path(__file__).resolve().parent.parent / "examples" / "campaigns" / "random_pairs.yaml"
+    )
+    doc = dict(campaign.scenario)
+    doc["planner"] = {**(doc.get("planner") or {}), "online_starts": True}
+    campaign = dataclasses.replace(campaign, scenario=doc)
+    controller.launch_plan = timed
+    try:
+        for i in range(trials):
+            trial_result(campaign, i, "gracenav")
+            print(f"pairs: trial {i + 1}/{trials}", file=sys.stderr, flush=True)
+    finally:
+        controller.launch_plan = design
+    t = np.array(seconds)
+    print(
+        f"online starts on the first {trials} random pairs: {t.size} calls, {taken} took one; "
+        f"wall time median {np.median(t):.3f} s, 90th percentile {np.percentile(t, 90):.2f} s, "
+        f"largest {t.max():.2f} s"
+    )
 
 
 if __name__ == "__main__":

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from pairs import pairs_trial
 
 from gracenav import BallbotParams, ConfigError
 from gracenav.errors import PlanningError
@@ -499,14 +500,9 @@ def test_a_start_at_rest_reaches_two_shift_ways_without_a_catch(trial) -> None:
     by two shifts whose first holds it, without the still catch's 1 s hold and cheaper
     than the way with a catch; each containment of the chain holds exactly and the
     task reaches its goal without balancing mode."""
-    from gracenav.campaign import load_campaign
-    from gracenav.campaign.runner import trial_result
     from gracenav.execution.capture import capture_for
 
-    camp = load_campaign(
-        Path(__file__).resolve().parent.parent / "examples" / "campaigns" / "random_pairs.yaml"
-    )
-    row, res = trial_result(camp, trial, "gracenav")
+    row, res = pairs_trial(trial, online_starts=False)
     assert row["reached_goal"] and row["balancing_s"] == 0.0
     t0, plan = res.episodes[0].captures[0]
     assert t0 == 0.0

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from pairs import pairs_trial
 
 from gracenav.execution import (
     CAPTURE,
@@ -195,13 +196,7 @@ def test_a_goal_off_the_map_lattice_ends_on_a_rest_trim_of_the_goal_lattice() ->
 
 
 def _trial(i: int):  # type: ignore[no-untyped-def]
-    from gracenav.campaign import load_campaign
-    from gracenav.campaign.runner import trial_result
-
-    camp = load_campaign(
-        Path(__file__).resolve().parent.parent / "examples/campaigns/random_pairs.yaml"
-    )
-    return trial_result(camp, i, "gracenav")
+    return pairs_trial(i, online_starts=False)
 
 
 def _hold_left(ep: Episode, lib):  # type: ignore[no-untyped-def]

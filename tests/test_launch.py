@@ -3,34 +3,20 @@
 
 from __future__ import annotations
 
-import dataclasses
-from pathlib import Path
-
 import numpy as np
 import pytest
+from pairs import pairs_trial
 from reverify import assert_holds_from_unchosen_points
 
-from gracenav.campaign import load_campaign
-from gracenav.campaign.runner import trial_result
 from gracenav.execution import CAPTURE, EventReason, ExecutionOptions
 from gracenav.execution.capture import capture_for
 from gracenav.execution.launch import _design, _shortest
 from gracenav.policies import PrimitiveKind
 from gracenav.policies.catches import band_leans
 
-ROOT = Path(__file__).resolve().parent.parent
-PAIRS = ROOT / "examples" / "campaigns" / "random_pairs.yaml"
 
-
-def _campaign(online: bool):  # type: ignore[no-untyped-def]
-    campaign = load_campaign(PAIRS)
-    doc = dict(campaign.scenario)
-    doc["planner"] = {**(doc.get("planner") or {}), "online_starts": online}
-    return dataclasses.replace(campaign, scenario=doc)
-
-
-def test_online_starts_are_off_by_default() -> None:
-    assert ExecutionOptions().online_starts is False
+def test_online_starts_are_on_by_default() -> None:
+    assert ExecutionOptions().online_starts is True
 
 
 @pytest.mark.slow
@@ -40,8 +26,8 @@ def test_a_start_takes_one_verified_maneuver_onto_a_cruise_trim() -> None:
     cruise trim with it; every containment of the switch holds exactly, the maneuver
     holds again from points its verification did not choose, and the task ends sooner
     without touching anything."""
-    row0, _ = trial_result(_campaign(False), 5, "gracenav")
-    row, result = trial_result(_campaign(True), 5, "gracenav")
+    row0, _ = pairs_trial(5, online_starts=False)
+    row, result = pairs_trial(5, online_starts=True)
     assert row0["reached_goal"] and row["reached_goal"]
     assert row["min_clearance_m"] >= 0.0 and row["balancing_s"] == 0.0
     assert row["time_s"] <= row0["time_s"] - 1.0
@@ -83,8 +69,8 @@ def test_a_start_near_obstacles_takes_a_smaller_start_domain() -> None:
     largest verified S sweeps a D' that the footprint does not fit beside them, so S is
     sized down until it does (rather than no maneuver), and the task still ends sooner,
     without touching anything."""
-    row0, _ = trial_result(_campaign(False), 15, "gracenav")
-    row, result = trial_result(_campaign(True), 15, "gracenav")
+    row0, _ = pairs_trial(15, online_starts=False)
+    row, result = pairs_trial(15, online_starts=True)
     assert row0["reached_goal"] and row["reached_goal"]
     assert row["min_clearance_m"] >= 0.0 and row["balancing_s"] == 0.0
     assert row["time_s"] <= row0["time_s"] - 1.0

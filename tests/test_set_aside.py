@@ -3,22 +3,16 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
+from pairs import pairs_trial
 
 from gracenav import ConfigError
 from gracenav.execution import EventReason, ExecutionOptions
 from gracenav.execution.supervisor import Supervisor
 
-PAIRS = Path(__file__).resolve().parent.parent / "examples" / "campaigns" / "random_pairs.yaml"
-
 
 def _trial_147():  # type: ignore[no-untyped-def]
-    from gracenav.campaign import load_campaign
-    from gracenav.campaign.runner import trial_result
-
-    return trial_result(load_campaign(PAIRS), 147, "gracenav")
+    return pairs_trial(147, online_starts=False)
 
 
 @pytest.mark.slow

@@ -1,5 +1,5 @@
 """Starts at rest through one maneuver designed and verified at the start (a gracenav
-extension, off by default: :attr:`~gracenav.execution.ExecutionOptions.online_starts`).
+extension, on by default: :attr:`~gracenav.execution.ExecutionOptions.online_starts`).
 
 A task that starts at rest off the lattice reaches it through a capture (a shift onto a
 rest trim, then a maneuver from rest) or a capture regulator. One maneuver from the start
@@ -11,13 +11,15 @@ and verified at a second placement too, a quarter turn, since the library places
 at every quarter turn): the nonic from rest at the start to the trim's start state, the
 shortest on the palette's duration grid that the shape trajectory planner makes
 feasible on the 3D model within the palette's lean and torque limits
-(:mod:`gracenav.primitives.design`); its start domain sized by bisection and verified on
-the 3D model from points on the surface of S (:func:`gracenav.policies.size_policy`), and
-from the still band (:func:`gracenav.policies.catches.verify_still_start`). It is used
-only where S holds the start, the trim's S holds its G (exact ellipsoid containment, the
-prepares relation), its swept D' grown by the footprint is clear of the map, and its
-duration plus the trim's cost-to-go is below what the start costs otherwise. It runs as
-a capture whose last policy is followed by that trim (:class:`CapturePlan`).
+(:mod:`gracenav.primitives.design`); its start domain sized by bisection, the largest
+that verifies on the 3D model from points on the surface of S and passes the size test
+that the trim's S holds its G (exact ellipsoid containment, the prepares relation) and
+its swept D' grown by the footprint is clear of the map
+(:func:`gracenav.policies.size_policy`), then verified from the still band
+(:func:`gracenav.policies.catches.verify_still_start`). It is used only where S holds
+the start and its duration plus the trim's cost-to-go is below what the start costs
+otherwise. It runs as a capture whose last policy is followed by that trim
+(:class:`CapturePlan`).
 """
 
 from __future__ import annotations

@@ -184,9 +184,9 @@ class ExecutionOptions:
         At a start at rest that a capture or a capture regulator would take onto the
         lattice, design and verify one maneuver from the start onto a library cruise
         trim ahead and take it where it is priced lower
-        (:mod:`gracenav.execution.launch`; a gracenav extension, off by default: each
-        start then plans and verifies up to four maneuvers on the 3D model, up to about
-        3 s measured on the random pairs).
+        (:mod:`gracenav.execution.launch`; a gracenav extension: such a start plans and
+        verifies up to four maneuvers on the 3D model, up to about 5 s of wall time,
+        median 0.06 s, measured on the random pairs by ``bench/bench_starts.py``).
     """
 
     plant: PlantKind = "model3d"
@@ -203,7 +203,7 @@ class ExecutionOptions:
     settle_tolerance: float = 0.01
     skip_holds: bool = True
     set_aside_exits: int = 2
-    online_starts: bool = False
+    online_starts: bool = True
 
     def __post_init__(self) -> None:
         if self.plant not in PLANT_KINDS:

@@ -126,7 +126,7 @@ class Scenario:
     online_starts : bool
         ``planner.online_starts``: a start at rest may take one maneuver designed and
         verified at the start onto the lattice
-        (:attr:`gracenav.execution.ExecutionOptions.online_starts`); off by default.
+        (:attr:`gracenav.execution.ExecutionOptions.online_starts`); on by default.
     """
 
     name: str
@@ -157,7 +157,7 @@ class Scenario:
     region: Literal["auto", "map", "task"] = "auto"
     region_margin: float = DEFAULT_REGION_MARGIN
     lattice_anchor: Literal["auto", "goal", "map"] = "auto"
-    online_starts: bool = False
+    online_starts: bool = True
 
 
 #: ``planner.lattice_anchor`` values (see :class:`Scenario`).
@@ -320,7 +320,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
     )
     region = planner.choice("region", REGIONS, "auto")
     lattice_anchor = planner.choice("lattice_anchor", LATTICE_ANCHORS, "auto")
-    online_starts = planner.boolean("online_starts", False)
+    online_starts = planner.boolean("online_starts", True)
     region_margin = planner.number(
         "region_margin",
         DEFAULT_REGION_MARGIN,
