@@ -476,16 +476,18 @@ class HybridController:
             plan = self.capture_plan(x, tree)
             if plan is not None:
                 current = CAPTURE
-        if options.online_starts and dyn is None and len(goals) == 1:
-            launched = self._launch(x, tree, current, plan, skip_holds=options.skip_holds)
-            if launched is not None:
-                plan, current = launched, CAPTURE
         if current < 0 and plan is None and dyn is None and len(goals) == 1:
             # Nor through the goal's own terminals: through any other end of the way.
             other = self._other_end(x, goals[0], capture=options.capture)
             if other is not None:
                 cand, tree, current, plan = other
                 goal_ids, terminals = [cand.approach], [cand]
+        if options.online_starts and dyn is None and len(goals) == 1:
+            # Priced against whatever the start takes otherwise, that other end included
+            # (unpriced only where nothing else serves the start).
+            launched = self._launch(x, tree, current, plan, skip_holds=options.skip_holds)
+            if launched is not None:
+                plan, current = launched, CAPTURE
         if current < 0 and plan is None:
             hits = self.library.start_domain_contains(p[None, :])
             if hits.nnz == 0:
