@@ -186,7 +186,7 @@ class ExecutionOptions:
         trim ahead and take it where it is priced lower
         (:mod:`gracenav.execution.launch`; a gracenav extension: such a start plans and
         verifies up to four maneuvers on the 3D model, up to about 5 s of wall time,
-        median 0.06 s, measured on the random pairs by ``bench/bench_starts.py``).
+        median 0.05 s, measured on the random pairs by ``bench/bench_starts.py``).
     """
 
     plant: PlantKind = "model3d"
