@@ -71,9 +71,11 @@ class LaunchOptions:
     across : float
         Largest distance (m) of the trim's start point across its direction of travel.
     candidates : int
-        Maneuvers sized at most, cheapest first by cost-to-go plus the shortest
-        duration their kinematics allow (each a 3D plan and the sizing of S; the
-        still band's verification only for the one that would be chosen).
+        Maneuvers whose S is verified at most, cheapest first by cost-to-go plus the
+        shortest duration their kinematics allow (each a 3D plan and the sizing of S,
+        its verifications; one whose size test fails even at S = G runs none and does
+        not count; the still band's verification only for the one that would be
+        chosen).
     """
 
     ahead: tuple[float, float] = (0.3, 2.0)
@@ -153,9 +155,9 @@ def _launch_plan(
     picks.sort()
 
     sized: list[tuple[float, int, MotionPolicy]] = []
-    least = budget
+    least, verified = budget, 0
     for bound, row, shortest in picks:
-        if bound >= least or len(sized) >= opts.candidates:
+        if bound >= least or verified >= opts.candidates:
             break
         maneuver = _design(
             start, library.start_xy[row], library.start_state[row, 2:4], palette, shortest
@@ -185,7 +187,10 @@ def _launch_plan(
             fits=fits,
             placements=(0,),
         )
-        if policy.report is None or not policy.report.passed:
+        if policy.report is None:
+            continue  # not even S = G fits: no verification ran
+        verified += 1
+        if not policy.report.passed:
             continue
         if not PlacedPolicy(policy, 0.0, start).start_domain.contains(p):
             continue
