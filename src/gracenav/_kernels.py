@@ -84,7 +84,7 @@ def dynamics(c, fr, x, tau, force, wm, wh, wj, wr, xdot):
     solve_spd(wm, wr, xdot[4:])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def rebuild_fine(cstates, cacc, cfirst, ffirst, intervals, basis, h, c, fr, r, st, acc, tau, pos):
     """Samples at every tick from every ``stride``-th one, for several primitives.
 
@@ -211,7 +211,7 @@ def _period(c, fr, x, tau, f, base, tethered, drag, drag_gain, h, substeps, ws):
         _rk4(c, fr, x, tau, f, h, wm, wh, wj, wr, k1, k2, k3, k4, xt)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def closed_loop(
     c_plant,
     fr_plant,

@@ -77,7 +77,7 @@ def _shape_accel(kind, c, q, qd, phdd, wm, wb, out):
                 out[i] = (beta * ph * g / r - (alpha + gam + 2.0 * beta) * phdd[i]) / (alpha + beta)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _integrate(kind, c, ph, phd, phdd, s0, h, th, thd, thdd):
     """RK4 of (θ, θ̇) under the dynamic constraint.
 
