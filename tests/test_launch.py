@@ -128,3 +128,25 @@ def test_a_start_served_through_another_end_prices_the_maneuver_against_it() -> 
     (_, plan), *_ = res.episodes[0].captures
     assert plan0.catch.policy.name != "launch" and plan.catch.policy.name != "launch"
     assert row["time_s"] == row0["time_s"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("trial", [7, 8])
+def test_a_start_designed_online_holds_under_sensor_noise(trial) -> None:
+    """Trials 7 and 8 of the random pairs run with 5 mm of position noise on the measured
+    state: the maneuver designed at the start runs to its end and switches gracefully
+    onto its trim, and the task reaches its goal without leaving a domain, recovering
+    or balancing, sooner than with the capture it replaces."""
+    row0, _ = pairs_trial(trial, online_starts=False)
+    row, res = pairs_trial(trial, online_starts=True)
+    assert row["noise_std_m"] == pytest.approx(0.005)
+    ep = res.episodes[0]
+    (t0, plan), *_ = ep.captures
+    assert t0 == 0.0 and plan.catch.policy.name == "launch" and len(ep.captures) == 1
+    assert ep.events[1].reason is EventReason.GRACEFUL
+    assert ep.events[1].to_policy == plan.rest_row
+    assert ep.events[1].time == pytest.approx(plan.catch.duration, abs=1.5 / 1024)
+    assert all(e.reason in (EventReason.START, EventReason.GRACEFUL) for e in ep.events[:-1])
+    assert row["reached_goal"] and row["verified_recoveries"] == 0
+    assert row["balancing_s"] == 0.0 and row["min_clearance_m"] >= 0.0
+    assert row["time_s"] < row0["time_s"]
