@@ -24,10 +24,12 @@ median time to goal and the median wall time per task.
 
     OPENBLAS_NUM_THREADS=1 python bench/bench_maps.py [--tasks 8] [--seed 0]
         [--classes forest forest_tight warehouse office] [--max-halvings N]
-        [--design-push 8] [--no-online-starts]
+        [--design-push 8] [--no-online-starts] [--no-online-ends]
 
 ``--no-online-starts`` sets ``planner.online_starts: false`` of every task (no start at
-rest through one maneuver designed at the start; the decoupled baseline ignores it).
+rest through one maneuver designed at the start; the decoupled baseline ignores it), and
+``--no-online-ends`` ``planner.online_ends: false`` (no end through one maneuver
+designed when the task starts).
 ``--design-push J`` sets ``planner.design_push`` (N s; default the scenario default,
 gracenav.library.DEFAULT_DESIGN_PUSH; 0: none) of every task, both planners (the
 decoupled baseline ignores it); ``GRACENAV_PALETTE=FILE`` runs another palette.
@@ -112,6 +114,7 @@ def run_one(
     max_halvings: int | None = None,
     design_push: float = DEFAULT_DESIGN_PUSH,
     online_starts: bool = True,
+    online_ends: bool = True,
 ) -> dict[str, Any]:
     """One task through run_scenario: outcome, time to goal, contact, wall time."""
     data: dict[str, Any] = {
@@ -131,6 +134,8 @@ def run_one(
     data["planner"]["design_push"] = design_push
     if not online_starts:
         data["planner"]["online_starts"] = False
+    if not online_ends:
+        data["planner"]["online_ends"] = False
     if planner == "decoupled":
         data["planner"]["kind"] = "decoupled"
     t0 = time.perf_counter()
@@ -177,6 +182,12 @@ def main() -> None:
         help="planner.online_starts: false in every task (no start at rest through one "
         "maneuver designed and verified at the start)",
     )
+    ap.add_argument(
+        "--no-online-ends",
+        action="store_true",
+        help="planner.online_ends: false in every task (no end through one maneuver "
+        "designed and verified when the task starts)",
+    )
     args = ap.parse_args()
     print("class      planner     tasks  reached  refused  contacts  median_time_s  median_wall_s")
     with tempfile.TemporaryDirectory() as tmp:
@@ -198,6 +209,7 @@ def main() -> None:
                         args.max_halvings,
                         args.design_push,
                         not args.no_online_starts,
+                        not args.no_online_ends,
                     )
                     for p, (_, s, g) in zip(paths, drawn, strict=True)
                 ]

@@ -27,7 +27,9 @@ the library then keeps room, where it moves faster than 0.8 m/s
 (``gracenav.library.push_fans.FAN_FLOOR``), for the catches of a push of J (with the
 pairs, the campaign's draws are then checked against that library);
 ``--no-online-starts`` sets ``planner.online_starts: false`` on both (no start at rest
-through one maneuver designed and verified at the start; the baseline ignores it). ``--breakdown``
+through one maneuver designed and verified at the start; the baseline ignores it), and
+``--no-online-ends`` ``planner.online_ends: false`` (no end through one maneuver designed
+and verified when the task starts, straight to rest at the goal). ``--breakdown``
 also prints, per pair, where gracenav's time goes (the start: capture regulators,
 catches, shifts and rest trims before the first lattice maneuver that moves; the
 lattice's maneuvers; the end after the last one), its path against the baseline's, and
@@ -36,7 +38,7 @@ to stderr, the tables to stdout.
 
     OPENBLAS_NUM_THREADS=1 nice -n 5 .venv/bin/python bench/bench_speed.py
         [--trials 20] [--seed N] [--only long|pairs] [--lean-limit-deg 5]
-        [--design-push 8] [--no-online-starts] [--breakdown]
+        [--design-push 8] [--no-online-starts] [--no-online-ends] [--breakdown]
 """
 
 from __future__ import annotations
@@ -352,6 +354,12 @@ def main() -> None:
         "and verified at the start)",
     )
     ap.add_argument(
+        "--no-online-ends",
+        action="store_true",
+        help="planner.online_ends: false (no end through one maneuver designed and verified "
+        "when the task starts)",
+    )
+    ap.add_argument(
         "--breakdown",
         action="store_true",
         help="pairs: also where gracenav's time and largest jerk lie, pair by pair",
@@ -366,6 +374,8 @@ def main() -> None:
     planner: dict[str, Any] = {"design_push": args.design_push}
     if args.no_online_starts:
         planner["online_starts"] = False
+    if args.no_online_ends:
+        planner["online_ends"] = False
     if args.only in (None, "long"):
         bench_long(palette, lean, args.seed if args.seed is not None else 0, planner)
     if args.only in (None, "pairs"):

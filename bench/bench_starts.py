@@ -17,11 +17,12 @@ the shift and the start (the still band) is not counted, which favours the shift
 Prints, per offset, the two ways' durations and their difference, then the medians.
 
 ``--pairs N`` then runs gracenav on the first N trials of
-``examples/campaigns/random_pairs.yaml`` (online starts on, as by default) and times
-the design of each online start (:func:`gracenav.execution.launch.launch_plan`, wall
-time, every call: the campaign's check of the pair, the task's check and its run; a
-task's check and run share one design): calls, starts that took one, median, 90th
-percentile and largest time.
+``examples/campaigns/random_pairs.yaml`` (online starts and ends on, as by default) and
+times the design of each online start (:func:`gracenav.execution.launch.launch_plan`)
+and each online end (:func:`gracenav.execution.arrival.arrival_plan`), wall time, every
+call: the campaign's check of the pair, the task's check and its run (a task's check
+and run share one design): calls, designs that took one, median, 90th percentile and
+largest time.
 
     OPENBLAS_NUM_THREADS=1 python bench/bench_starts.py [--step 0.125] [--pairs 20]
 """
@@ -134,10 +135,12 @@ def main() -> None:
 
 
 def time_starts(trials: int) -> None:
-    """Wall time of every online start's design on the first ``trials`` random pairs."""
+    """Wall time of every online start's and online end's design on the first
+    ``trials`` random pairs."""
     import dataclasses
     import sys
     import time
+    from collections.abc import Callable
     from pathlib import Path
     from typing import Any
 
@@ -145,37 +148,46 @@ def time_starts(trials: int) -> None:
     from gracenav.campaign import load_campaign
     from gracenav.campaign.runner import trial_result
 
-    design = controller.launch_plan
-    seconds: list[float] = []
-    taken = 0
+    names = {"launch_plan": "online starts", "arrival_plan": "online ends"}
+    designs = {name: getattr(controller, name) for name in names}
+    seconds: dict[str, list[float]] = {name: [] for name in names}
+    taken = dict.fromkeys(names, 0)
 
-    def timed(*args: Any, **kwargs: Any) -> Any:
-        nonlocal taken
-        t0 = time.perf_counter()
-        plan = design(*args, **kwargs)
-        seconds.append(time.perf_counter() - t0)
-        taken += plan is not None
-        return plan
+    def timed(name: str) -> Callable[..., Any]:
+        def run(*args: Any, **kwargs: Any) -> Any:
+            t0 = time.perf_counter()
+            plan = designs[name](*args, **kwargs)
+            seconds[name].append(time.perf_counter() - t0)
+            taken[name] += plan is not None
+            return plan
+
+        return run
 
     campaign = load_campaign(
         Path(__file__).resolve().parent.parent / "examples" / "campaigns" / "random_pairs.yaml"
     )
     doc = dict(campaign.scenario)
-    doc["planner"] = {**(doc.get("planner") or {}), "online_starts": True}
+    doc["planner"] = {**(doc.get("planner") or {}), "online_starts": True, "online_ends": True}
     campaign = dataclasses.replace(campaign, scenario=doc)
-    controller.launch_plan = timed
+    for name in names:
+        setattr(controller, name, timed(name))
     try:
         for i in range(trials):
             trial_result(campaign, i, "gracenav")
             print(f"pairs: trial {i + 1}/{trials}", file=sys.stderr, flush=True)
     finally:
-        controller.launch_plan = design
-    t = np.array(seconds)
-    print(
-        f"online starts on the first {trials} random pairs: {t.size} calls, {taken} took one; "
-        f"wall time median {np.median(t):.3f} s, 90th percentile {np.percentile(t, 90):.2f} s, "
-        f"largest {t.max():.2f} s"
-    )
+        for name, design in designs.items():
+            setattr(controller, name, design)
+    for name, label in names.items():
+        t = np.array(seconds[name])
+        if t.size == 0:
+            print(f"{label} on the first {trials} random pairs: no calls")
+            continue
+        print(
+            f"{label} on the first {trials} random pairs: {t.size} calls, {taken[name]} took "
+            f"one; wall time median {np.median(t):.3f} s, 90th percentile "
+            f"{np.percentile(t, 90):.2f} s, largest {t.max():.2f} s"
+        )
 
 
 if __name__ == "__main__":

@@ -12,16 +12,23 @@ from gracenav.campaign.runner import trial_result
 PAIRS = Path(__file__).resolve().parent.parent / "examples" / "campaigns" / "random_pairs.yaml"
 
 
-def pairs_campaign(*, online_starts: bool) -> Campaign:
-    """The campaign with ``planner.online_starts`` set: the tests of captures, holds
-    and set-aside policies turn it off, since a start designed online takes the place
-    of the captures they look at."""
+def pairs_campaign(*, online_starts: bool, online_ends: bool = True) -> Campaign:
+    """The campaign with ``planner.online_starts`` and ``planner.online_ends`` set: the
+    tests of captures, holds and set-aside policies turn online starts off, since a
+    start designed online takes the place of the captures they look at."""
     campaign = load_campaign(PAIRS)
     doc = dict(campaign.scenario)
-    doc["planner"] = {**(doc.get("planner") or {}), "online_starts": online_starts}
+    doc["planner"] = {
+        **(doc.get("planner") or {}),
+        "online_starts": online_starts,
+        "online_ends": online_ends,
+    }
     return dataclasses.replace(campaign, scenario=doc)
 
 
-def pairs_trial(index: int, *, online_starts: bool) -> tuple[dict[str, Any], Any]:
+def pairs_trial(
+    index: int, *, online_starts: bool, online_ends: bool = True
+) -> tuple[dict[str, Any], Any]:
     """gracenav's result row and run of trial ``index`` (:func:`trial_result`)."""
-    return trial_result(pairs_campaign(online_starts=online_starts), index, "gracenav")
+    campaign = pairs_campaign(online_starts=online_starts, online_ends=online_ends)
+    return trial_result(campaign, index, "gracenav")

@@ -67,7 +67,8 @@ def test_a_goal_between_posts_is_reached_through_shifts_without_contact(forest: 
             {"ros_map": str(forest)},
             goal,
             (15.0, 2.25),
-            planner={"cost": "time", "lattice_anchor": "map"},  # the goal off the lattice
+            # The goal off the lattice; its terminal, not an end designed online.
+            planner={"cost": "time", "lattice_anchor": "map", "online_ends": False},
         ),
         source="forest.yaml",
     )
@@ -144,20 +145,23 @@ def test_regulator_ends_become_shifts_from_the_same_approach(
         assert term.goal_domain.contains(g)
 
 
+@pytest.mark.parametrize("online_ends", [False, True])
 @pytest.mark.parametrize("noise", [0.0, 0.005])
-def test_a_goal_off_the_lattice_ends_without_a_step(noise: float) -> None:
+def test_a_goal_off_the_lattice_ends_without_a_step(noise: float, online_ends: bool) -> None:
     """A goal off the map's lattice, 1 cm off the shifts' grid: the shifts and a hold at
     the goal end the task within the settle tolerance of it, the reference never steps
     by more than the grid's half diagonal (the regulator's step to the goal is up to
     0.2 m), and the ball's jerk stays within the shifts' bound (the regulator's step
-    jerks it at 30-40 m/s³); with 5 mm of position noise on the measured state too."""
+    jerks it at 30-40 m/s³); with 5 mm of position noise on the measured state too.
+    With online ends, one maneuver straight to rest at the goal takes the place of the
+    shifts, and the hold at the goal takes over from it: the same holds."""
     goal = (1.13 + 0.01, 1.37)
     scenario = parse_scenario(
         _task(
             BOX_ROOM,
             goal,
             (4.0, 4.25),
-            planner={"cost": "time", "lattice_anchor": "map"},
+            planner={"cost": "time", "lattice_anchor": "map", "online_ends": online_ends},
             simulation={"max_time": 60, "position_noise_std": noise, "seed": 3},
         ),
         source="box.yaml",
@@ -165,7 +169,13 @@ def test_a_goal_off_the_lattice_ends_without_a_step(noise: float) -> None:
     result = run_scenario(scenario)
     run, ep = result.runs[0], result.episodes[0]
     assert run.reached_goal and run.stop_reason == "goal_reached"
-    assert any(e.reason is EventReason.TERMINAL for e in ep.events)
+    if online_ends:
+        assert ep.arrival is not None and ep.arrival.plan.rest_row == TERMINAL
+        assert not any(e.reason is EventReason.TERMINAL for e in ep.events)
+        assert ep.events[-1].reason is EventReason.HOLD_GOAL
+    else:
+        assert ep.arrival is None
+        assert any(e.reason is EventReason.TERMINAL for e in ep.events)
     assert run.final_error_m is not None and run.final_error_m <= 0.011
     steps = np.hypot(*np.diff(ep.reference[:, :2], axis=0).T)
     assert steps.max() <= _GRID_HALF_DIAGONAL + 1e-3

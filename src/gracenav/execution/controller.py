@@ -32,9 +32,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from gracenav.control import CONTROL_RATE, TrackingLaw
 from gracenav.errors import ConfigError, PlanningError
-from gracenav.execution.capture import CapturePlan, Terminal, capture_for
+from gracenav.execution.arrival import ArrivalPlan, arrival_plan
+from gracenav.execution.capture import CapturePlan, Terminal, TerminalPolicy, capture_for
 from gracenav.execution.episode import Episode, ExecutionLog, drive
-from gracenav.execution.goals import Goals
+from gracenav.execution.goals import ON_LATTICE, Goals
 from gracenav.execution.launch import launch_plan
 from gracenav.execution.obstacles import ObstacleTracker
 from gracenav.execution.supervisor import BALANCING_MARGIN, Supervisor
@@ -366,6 +367,40 @@ class HybridController:
         p = position_state(x, self.radius)
         return launch_plan(self.library, p, lean, tree.cost_to_go, budget)
 
+    def _arrival(
+        self,
+        goal: ArrayLike,
+        terminal: Terminal | None,
+        tree: PolicyTree,
+        current: int,
+        plan: CapturePlan | None,
+        *,
+        skip_holds: bool,
+    ) -> ArrivalPlan | None:
+        """The end maneuver (:func:`gracenav.execution.arrival.arrival_plan`) on the
+        tree's way from the first library policy the task runs (the one ``current`` is,
+        or the rest trim a capture ``plan`` leaves the robot on) to a goal at rest: the
+        goal policy's point, or off the lattice the capture regulator the ``terminal``
+        places there; None where there is none or it does not pay."""
+        g = np.asarray(goal, dtype=float)
+        if np.any(g[2:] != 0.0):
+            return None
+        first = plan.rest_row if current == CAPTURE and plan is not None else current
+        if first < 0 or not tree.reachable(first):
+            return None
+        way = tree.path_from(first)
+        if terminal is None:
+            if np.linalg.norm(self.library.start_xy[way[-1]] - g[:2]) > ON_LATTICE:
+                return None
+            return arrival_plan(self.library, way, skip_holds=skip_holds)
+        if terminal.approach != way[-1]:
+            return None
+        # The capture regulator at the goal: the terminal, or the hold after its shifts.
+        hold = terminal if isinstance(terminal, TerminalPolicy) else terminal.hold
+        if not hold.policy.capture or np.linalg.norm(hold.start_xy - g[:2]) > ON_LATTICE:
+            return None
+        return arrival_plan(self.library, way, hold=hold, skip_holds=skip_holds)
+
     def best_policy(self, p: ArrayLike, tree: PolicyTree | LazyPolicyTree) -> int:
         """The policy with the lowest cost-to-go whose S contains ``p`` (−1 if none).
 
@@ -488,6 +523,17 @@ class HybridController:
             launched = self._launch(x, tree, current, plan, skip_holds=options.skip_holds)
             if launched is not None:
                 plan, current = launched, CAPTURE
+        arrival = None
+        if (
+            options.online_ends
+            and dyn is None
+            and len(goals) == 1
+            and loops == 1
+            and isinstance(tree, PolicyTree)
+        ):
+            arrival = self._arrival(
+                goals[0], terminals[0], tree, current, plan, skip_holds=options.skip_holds
+            )
         if current < 0 and plan is None:
             hits = self.library.start_domain_contains(p[None, :])
             if hits.nnz == 0:
@@ -517,6 +563,7 @@ class HybridController:
             dyn=dyn,
             holding=holding,
             capture_plan=plan,
+            arrival=arrival,
             loops=loops,
         )
 

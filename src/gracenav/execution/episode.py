@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -26,6 +26,9 @@ from gracenav.planning.repair import ReplanEvent
 from gracenav.sim import BodyForce, Disturbance, Drag, Push, StateJump, position_state
 from gracenav.sim.plant import DisturbablePlant, Plant
 from gracenav.world.moving import MovingObstacle
+
+if TYPE_CHECKING:
+    from gracenav.execution.arrival import ArrivalPlan
 
 __all__ = ["Episode", "ExecutionLog", "TickController", "Trace", "drive", "held_at"]
 
@@ -52,6 +55,7 @@ class ExecutionLog:
     replans: tuple[ReplanEvent, ...] = ()
     blocked_time: float = 0.0
     captures: tuple[tuple[float, CapturePlan], ...] = ()
+    arrival: ArrivalPlan | None = None
 
 
 @dataclass(frozen=True)
@@ -90,6 +94,10 @@ class Episode:
     captures : tuple of (float, CapturePlan)
         Time and plan (placed catch and shift, rest trim) of every capture started
         (:data:`CAPTURE` in :attr:`policy`), for checks and drawings.
+    arrival : ArrivalPlan or None
+        The end maneuver designed when the task started
+        (:mod:`gracenav.execution.arrival`), if any; while it runs, :attr:`policy` is
+        :data:`CAPTURE` too.
     """
 
     time: FloatArray
@@ -106,6 +114,7 @@ class Episode:
     blocked_time: float = 0.0
     moving_obstacles: tuple[MovingObstacle, ...] = ()
     captures: tuple[tuple[float, CapturePlan], ...] = ()
+    arrival: ArrivalPlan | None = None
 
     @classmethod
     def from_trace(
@@ -127,6 +136,7 @@ class Episode:
             blocked_time=log.blocked_time,
             moving_obstacles=tuple(moving_obstacles),
             captures=log.captures,
+            arrival=log.arrival,
         )
 
     @property

@@ -8,10 +8,8 @@ itself onto the state of a library cruise trim ahead does both at once
 it (the start is anywhere), so it is made when the task starts as the palette's
 maneuvers and policies are made, in the one frame it runs in (the palette's are planned
 and verified at a second placement too, a quarter turn, since the library places them
-at every quarter turn): the nonic from rest at the start to the trim's start state, the
-shortest on the palette's duration grid that the shape trajectory planner makes
-feasible on the 3D model within the palette's lean and torque limits
-(:mod:`gracenav.primitives.design`); its start domain sized by bisection, the largest
+at every quarter turn): the nonic from rest at the start to the trim's start state
+(:mod:`gracenav.execution.online`); its start domain sized by bisection, the largest
 that verifies on the 3D model from points on the surface of S and passes the size test
 that the trim's S holds its G (exact ellipsoid containment, the prepares relation) and
 its swept D' grown by the footprint is clear of the map
@@ -25,9 +23,7 @@ otherwise. It runs as a capture whose last policy is followed by that trim
 from __future__ import annotations
 
 import hashlib
-import math
 import weakref
-from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -35,17 +31,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gracenav.execution.capture import CapturePlan, PlacedPolicy, capture_for
+from gracenav.execution.online import design, shortest
 from gracenav.policies import MotionPolicy, PrimitiveKind, domain_shape, size_policy
 from gracenav.policies.catches import verify_still_start
 from gracenav.policies.primitive import SampledPrimitive
-from gracenav.primitives.design import passes_screen
-from gracenav.primitives.motion import Maneuver, PrimitiveReport, PrimitiveSetOptions
-from gracenav.primitives.references import NonicReference
-from gracenav.primitives.shape_planner import plan_shape_trajectory
 
 if TYPE_CHECKING:
     from gracenav.library import PolicyLibrary
-    from gracenav.palette import Palette
     from gracenav.policies.domains import EllipsoidalDomain
 
 __all__ = ["LaunchOptions", "launch_plan"]
@@ -130,7 +122,7 @@ def _launch_plan(
     p = np.asarray(state, dtype=float).reshape(4)
     if catch is None or lean[0] > catch.still_lean[0] or lean[1] > catch.still_lean[1]:
         return None
-    start = p[:2]
+    start, zero = p[:2], np.zeros(2)
     rows = library.trim_indices(PrimitiveKind.CRUISE)
     rows = rows[np.isfinite(cost_to_go[rows]) & ~library.is_fine(rows)]
     v = library.start_state[rows, 2:4]
@@ -148,20 +140,20 @@ def _launch_plan(
     # first bound above the best found.
     picks: list[tuple[float, int, float]] = []
     for row in rows[near].tolist():
-        shortest = _shortest(start, library.start_xy[row], library.start_state[row, 2:4], palette)
-        bound = shortest + float(cost_to_go[row])
+        end, velocity = library.start_xy[row], library.start_state[row, 2:4]
+        least_time = shortest(start, end, zero, velocity, palette)
+        bound = least_time + float(cost_to_go[row])
         if bound < budget:
-            picks.append((bound, int(row), shortest))
+            picks.append((bound, int(row), least_time))
     picks.sort()
 
     sized: list[tuple[float, int, MotionPolicy]] = []
     least, verified = budget, 0
-    for bound, row, shortest in picks:
+    for bound, row, least_time in picks:
         if bound >= least or verified >= opts.candidates:
             break
-        maneuver = _design(
-            start, library.start_xy[row], library.start_state[row, 2:4], palette, shortest
-        )
+        end, velocity = library.start_xy[row], library.start_state[row, 2:4]
+        maneuver = design(start, end, zero, velocity, palette, least_time, name="launch")
         if maneuver is None:
             continue
         cost = maneuver.duration + float(cost_to_go[row])
@@ -202,70 +194,4 @@ def _launch_plan(
         if policy.starts_from_still_band:
             catch_at = PlacedPolicy(policy, 0.0, start.copy())
             return CapturePlan(catch=catch_at, shifts=(), rest_row=row, cost=cost)
-    return None
-
-
-def _shortest(start: FloatArray, end: FloatArray, velocity: FloatArray, palette: Palette) -> float:
-    """The shortest duration on the palette's duration grid whose nonic from rest at
-    ``start`` to ``end`` at ``velocity`` keeps within the palette's speeds (inf if none
-    within its longest maneuver): a lower bound on :func:`_design`'s, from kinematics
-    alone."""
-    disp, v1 = np.asarray(end, dtype=float) - start, np.asarray(velocity, dtype=float)
-    for duration, _ in _admissible(disp, v1, palette.primitive_options, 0.0):
-        return duration
-    return math.inf
-
-
-def _admissible(
-    disp: FloatArray, v1: FloatArray, options: PrimitiveSetOptions, shortest: float
-) -> Iterator[tuple[float, NonicReference]]:
-    """The nonics from rest to displacement ``disp`` at velocity ``v1`` on the duration
-    grid from ``shortest`` (s) on, shortest first, that keep within ``options``' speed
-    and do not run backwards against ``v1``."""
-    zero = np.zeros(2)
-    u = v1 / float(np.hypot(*v1))
-    step = options.duration_step
-    first = max(1, math.ceil(shortest / step - 1e-9))
-    for m in range(first, math.floor(options.max_duration / step + 1e-9) + 1):
-        duration = m * step
-        ref = NonicReference.between(duration, zero, zero, disp, v1)
-        t = np.linspace(0.0, duration, max(2, int(duration * 128) + 1))
-        vel = ref.value(t, 1)
-        if np.max(np.hypot(vel[:, 0], vel[:, 1])) > options.max_speed * (1 + 1e-9):
-            continue
-        if np.min(vel @ u) < -options.max_backward_speed:
-            continue  # no running backwards against the trim's direction
-        yield duration, ref
-
-
-def _design(
-    start: FloatArray, end: FloatArray, velocity: FloatArray, palette: Palette, shortest: float
-) -> Maneuver | None:
-    """The shortest nonic on the palette's duration grid, from ``shortest`` (s) on, from
-    rest at ``start`` to ``end`` at ``velocity`` that is feasible on the 3D model (None
-    if none is within the palette's longest maneuver)."""
-    options = palette.primitive_options
-    params = palette.params
-    zero = np.zeros(2)
-    disp = np.asarray(end, dtype=float) - start
-    v1 = np.asarray(velocity, dtype=float)
-    for duration, ref in _admissible(disp, v1, options, shortest):
-        if not passes_screen(ref, params, options):
-            continue  # the palette's screen: the 3D model only where it may pass
-        res = plan_shape_trajectory(ref, params, model="3d", options=options.planner)
-        if not res.within(options.max_lean, params.torque_limit):
-            continue
-        report = PrimitiveReport.from_result(res)
-        return Maneuver(
-            name="launch",
-            duration=duration,
-            displacement=disp,
-            start_velocity=zero,
-            end_velocity=v1,
-            params=params,
-            start_trim="rest",
-            end_trim="cruise",
-            plans=(res.trajectory, res.trajectory),
-            reports=(report, report),
-        )
     return None

@@ -45,6 +45,7 @@ if TYPE_CHECKING:
     from concurrent.futures import ThreadPoolExecutor
 
     from gracenav.control import ControllerGains as _Gains
+    from gracenav.execution.arrival import ArrivalPlan
     from gracenav.execution.capture import Terminal
     from gracenav.execution.goals import Goals
     from gracenav.library import PolicyLibrary
@@ -178,6 +179,7 @@ class Supervisor:
         holding: bool,
         capture_plan: CapturePlan | None,
         loops: int,
+        arrival: ArrivalPlan | None = None,
     ) -> None:
         self.hc = hc
         self.options = options
@@ -201,6 +203,8 @@ class Supervisor:
         self.retarget_free: list[Terminal] = []
         self.retarget_trees: dict[int, Any] = {}
         self.captured: list[PlacedPolicy] = []
+        #: The end maneuver designed when the task started (taken after its policy).
+        self.arrival = arrival
         self.capture_plans: list[tuple[float, CapturePlan]] = []
         self.capture_row = -1
         #: The last position states while a policy that settles runs (see _settled).
@@ -528,6 +532,7 @@ class Supervisor:
             + tuple(self.own_replans),
             blocked_time=self.blocked_time,
             captures=tuple(self.capture_plans),
+            arrival=self.arrival,
         )
 
     # -- segments ------------------------------------------------------------------
@@ -845,6 +850,18 @@ class Supervisor:
                 if self.captured:
                     return EventReason.GRACEFUL, CAPTURE
                 nxt = self.capture_row
+                if nxt == TERMINAL:
+                    # An end maneuver to a goal off the lattice: the capture regulator
+                    # there, the terminal or the hold after a terminal's shifts.
+                    if isinstance(term, ShiftTerminal) and term.hold.start_domain.contains(p):
+                        x = self.x
+                        if term.accepts_lean(float(np.hypot(*x[2:4])), float(np.hypot(*x[6:8]))):
+                            self.term_stage = len(term.shifts)
+                            return EventReason.HOLD_GOAL, TERMINAL
+                    elif term is not None and self._terminal_starts(term, p):
+                        self.term_stage = 0
+                        return EventReason.TERMINAL, TERMINAL
+                    return EventReason.NOT_IN_GOAL, hc.best_policy(p, self.tree)
                 if not hc.library.policy(nxt).start_domain.contains(p):
                     return EventReason.NOT_IN_GOAL, hc.best_policy(p, self.tree)
                 return self._past_hold(nxt, p)
@@ -862,6 +879,18 @@ class Supervisor:
         inst = hc.library.policy(current)
         if not inst.goal_domain.contains(p):
             return EventReason.NOT_IN_GOAL, hc.best_policy(p, self.tree)
+        arrival = self.arrival
+        if (
+            arrival is not None
+            and current == arrival.after
+            and not seg.is_goal
+            and arrival.plan.catch.start_domain.contains(p)
+        ):
+            # The end maneuver designed at the start, straight to rest at the goal.
+            self.captured = list(arrival.plan.policies)
+            self.capture_row = arrival.plan.rest_row
+            self.offset = 0
+            return EventReason.GRACEFUL, CAPTURE
         if seg.is_goal and term is not None:
             # Off-lattice goal: the terminal takes over from the rest trim.
             if self.dyn is not None and self._end_blocked():

@@ -187,6 +187,12 @@ class ExecutionOptions:
         (:mod:`gracenav.execution.launch`; a gracenav extension: such a start plans and
         verifies up to four maneuvers on the 3D model, up to about 5 s of wall time,
         median 0.05 s, measured on the random pairs by ``bench/bench_starts.py``).
+    online_ends : bool
+        For a single goal at rest on the lattice, design and verify one maneuver from
+        the end of a moving policy on the tree's way straight to rest at the goal, and
+        take it when that policy ends where it is priced lower than the rest of the
+        way (:mod:`gracenav.execution.arrival`; a gracenav extension: up to four
+        maneuvers planned and verified on the 3D model when the task starts).
     """
 
     plant: PlantKind = "model3d"
@@ -204,6 +210,7 @@ class ExecutionOptions:
     skip_holds: bool = True
     set_aside_exits: int = 2
     online_starts: bool = True
+    online_ends: bool = True
 
     def __post_init__(self) -> None:
         if self.plant not in PLANT_KINDS:

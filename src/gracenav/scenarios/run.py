@@ -308,6 +308,7 @@ def _execution_options(scenario: Scenario) -> Any:
         capture=scenario.capture,
         sensing=ObstacleSensing(range=scenario.sensing_range),
         online_starts=scenario.online_starts,
+        online_ends=scenario.online_ends,
     )
 
 

@@ -127,6 +127,11 @@ class Scenario:
         ``planner.online_starts``: a start at rest may take one maneuver designed and
         verified at the start onto the lattice
         (:attr:`gracenav.execution.ExecutionOptions.online_starts`); on by default.
+    online_ends : bool
+        ``planner.online_ends``: a single goal at rest may be reached through one
+        maneuver designed and verified when the task starts, from a moving policy on
+        the way straight to rest at the goal
+        (:attr:`gracenav.execution.ExecutionOptions.online_ends`); on by default.
     """
 
     name: str
@@ -158,6 +163,7 @@ class Scenario:
     region_margin: float = DEFAULT_REGION_MARGIN
     lattice_anchor: Literal["auto", "goal", "map"] = "auto"
     online_starts: bool = True
+    online_ends: bool = True
 
 
 #: ``planner.lattice_anchor`` values (see :class:`Scenario`).
@@ -291,6 +297,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
             "region_margin",
             "lattice_anchor",
             "online_starts",
+            "online_ends",
         }
     )
     planner_kind = planner.choice("kind", PLANNERS, "gracenav")
@@ -321,6 +328,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
     region = planner.choice("region", REGIONS, "auto")
     lattice_anchor = planner.choice("lattice_anchor", LATTICE_ANCHORS, "auto")
     online_starts = planner.boolean("online_starts", True)
+    online_ends = planner.boolean("online_ends", True)
     region_margin = planner.number(
         "region_margin",
         DEFAULT_REGION_MARGIN,
@@ -431,6 +439,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         region_margin=region_margin,
         lattice_anchor=lattice_anchor,  # type: ignore[arg-type]
         online_starts=online_starts,
+        online_ends=online_ends,
     )
 
 

@@ -1,0 +1,122 @@
+"""Maneuvers designed when a task starts (gracenav extensions): one from a start at rest
+onto the lattice (:mod:`gracenav.execution.launch`) and one from the lattice to rest at
+the goal (:mod:`gracenav.execution.arrival`).
+
+Each is made as the palette's maneuvers are made (:mod:`gracenav.primitives.design`): the
+nonic between two position states, the shortest on the palette's duration grid that
+keeps within its speed, does not run backwards along the way it moves, and that the
+shape trajectory planner makes feasible on the 3D model within the palette's lean and
+torque limits; planned in the one frame it runs in.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from gracenav.primitives.design import passes_screen
+from gracenav.primitives.motion import Maneuver, PrimitiveReport, PrimitiveSetOptions
+from gracenav.primitives.references import NonicReference
+from gracenav.primitives.shape_planner import plan_shape_trajectory
+
+if TYPE_CHECKING:
+    from gracenav.palette import Palette
+
+__all__ = ["admissible", "design", "shortest"]
+
+FloatArray = NDArray[np.float64]
+
+#: Shortest duration (s) designed: the shape trajectory planner's basis needs a few
+#: knots (at 0.25 s and below its linear system is singular or its ends are not trims).
+_SHORTEST = 0.5
+
+#: Speed (m/s) below which an end is at rest (a stop's end velocity is about 1e-13 m/s).
+_MOVING = 1e-6
+
+
+def admissible(
+    disp: FloatArray,
+    v0: FloatArray,
+    v1: FloatArray,
+    options: PrimitiveSetOptions,
+    shortest: float,
+) -> Iterator[tuple[float, NonicReference]]:
+    """The nonics from the origin at velocity ``v0`` to displacement ``disp`` at velocity
+    ``v1`` on the duration grid from ``shortest`` (s, at least :data:`_SHORTEST`) on,
+    shortest first, that keep within ``options``' speed and do not run backwards
+    (beyond ``options.max_backward_speed``) against the moving end's direction of travel (the
+    end's, when both move; the displacement's, from rest to rest)."""
+    along = v1 if float(np.hypot(*v1)) > _MOVING else v0 if float(np.hypot(*v0)) > _MOVING else disp
+    u = along / float(np.hypot(*along))
+    step = options.duration_step
+    first = max(1, math.ceil(max(shortest, _SHORTEST) / step - 1e-9))
+    for m in range(first, math.floor(options.max_duration / step + 1e-9) + 1):
+        duration = m * step
+        ref = NonicReference.between(duration, np.zeros(2), v0, disp, v1)
+        t = np.linspace(0.0, duration, max(2, int(duration * 128) + 1))
+        vel = ref.value(t, 1)
+        if np.max(np.hypot(vel[:, 0], vel[:, 1])) > options.max_speed * (1 + 1e-9):
+            continue
+        if np.min(vel @ u) < -options.max_backward_speed:
+            continue
+        yield duration, ref
+
+
+def shortest(
+    start: FloatArray,
+    end: FloatArray,
+    v0: FloatArray,
+    v1: FloatArray,
+    palette: Palette,
+) -> float:
+    """The shortest duration :func:`admissible` gives from ``start`` at ``v0`` to ``end``
+    at ``v1`` (inf if none within the palette's longest maneuver): a lower bound on
+    :func:`design`'s, from kinematics alone."""
+    disp = np.asarray(end, dtype=float) - start
+    u0, u1 = np.asarray(v0, dtype=float), np.asarray(v1, dtype=float)
+    for duration, _ in admissible(disp, u0, u1, palette.primitive_options, 0.0):
+        return duration
+    return math.inf
+
+
+def design(
+    start: FloatArray,
+    end: FloatArray,
+    v0: FloatArray,
+    v1: FloatArray,
+    palette: Palette,
+    shortest: float,
+    *,
+    name: str,
+) -> Maneuver | None:
+    """The shortest nonic on the palette's duration grid, from ``shortest`` (s) on, from
+    ``start`` at ``v0`` to ``end`` at ``v1`` that is feasible on the 3D model (None if
+    none is within the palette's longest maneuver)."""
+    options = palette.primitive_options
+    params = palette.params
+    disp = np.asarray(end, dtype=float) - start
+    v0, v1 = (np.asarray(v, dtype=float) for v in (v0, v1))
+    for duration, ref in admissible(disp, v0, v1, options, shortest):
+        if not passes_screen(ref, params, options):
+            continue  # the palette's screen: the 3D model only where it may pass
+        res = plan_shape_trajectory(ref, params, model="3d", options=options.planner)
+        if not res.within(options.max_lean, params.torque_limit):
+            continue
+        report = PrimitiveReport.from_result(res)
+        return Maneuver(
+            name=name,
+            duration=duration,
+            displacement=disp,
+            start_velocity=v0,
+            end_velocity=v1,
+            params=params,
+            start_trim="cruise" if float(np.hypot(*v0)) > _MOVING else "rest",
+            end_trim="cruise" if float(np.hypot(*v1)) > _MOVING else "rest",
+            plans=(res.trajectory, res.trajectory),
+            reports=(report, report),
+        )
+    return None

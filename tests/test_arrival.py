@@ -1,0 +1,142 @@
+"""Ends at rest through one maneuver designed and verified when the task starts
+(``ExecutionOptions.online_ends``, :mod:`gracenav.execution.arrival`)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pairs import pairs_trial
+from reverify import assert_holds_from_unchosen_points
+
+from gracenav.execution import CAPTURE, TERMINAL, EventReason, ExecutionOptions
+from gracenav.execution.capture import capture_for
+from gracenav.execution.online import design, shortest
+from gracenav.policies import PrimitiveKind
+
+TICK = 1.0 / 1024
+
+
+def test_online_ends_are_on_by_default() -> None:
+    assert ExecutionOptions().online_ends is True
+
+
+def _arrived_sooner(trial: int):  # type: ignore[no-untyped-def]
+    """Trial ``trial`` of the random pairs with online ends and without: both reach the
+    goal, with them without contact or balancing and sooner by the plan's saving (to a
+    few ticks of settling), through the end maneuver, entered by a graceful switch when
+    the policy it follows ends. Returns the row and the run with them (the row also with
+    ``time_without_s``), and its arrival plan."""
+    row0, res0 = pairs_trial(trial, online_starts=True, online_ends=False)
+    row, result = pairs_trial(trial, online_starts=True)
+    assert row0["reached_goal"] and row["reached_goal"]
+    assert res0.episodes[0].arrival is None
+    assert row["min_clearance_m"] >= 0.0 and row["balancing_s"] == 0.0
+    ep = result.episodes[0]
+    arrival = ep.arrival
+    assert arrival is not None and arrival.saving >= 1.0
+    # At least the saving priced (off the lattice the regulator's shorter settling too).
+    assert row["time_s"] <= row0["time_s"] - arrival.saving + 0.25
+    row["time_without_s"] = row0["time_s"]
+    into = [k for k, e in enumerate(ep.events) if k > 0 and e.to_policy == CAPTURE]
+    assert len(into) == 1
+    k = into[0]
+    assert ep.events[k].reason is EventReason.GRACEFUL
+    assert ep.events[k - 1].to_policy == arrival.after
+    # It runs to its end, then what follows at the goal takes over.
+    maneuver = arrival.plan.catch
+    assert ep.events[k + 1].time == pytest.approx(
+        ep.events[k].time + maneuver.duration, abs=2 * TICK
+    )
+    assert ep.events[k + 1].to_policy == arrival.plan.rest_row
+    return row, result, arrival
+
+
+def _check_domains(result, arrival) -> None:  # type: ignore[no-untyped-def]
+    """The prepares relation both ways, exactly, and the sweep clear of the map."""
+    lib = result.library
+    maneuver = arrival.plan.catch
+    assert maneuver.start_domain.contains_domain(lib.policy(arrival.after).goal_domain)
+    path, reach = capture_for(lib).swept(maneuver.policy)
+    assert np.all(capture_for(lib).clear(maneuver.start_xy + path, reach))
+    # From the policy's end state, straight to rest.
+    prim = maneuver.primitive
+    end = lib.end_state[arrival.after]
+    assert np.allclose(maneuver.start_xy, end[:2])
+    assert np.allclose(prim.start_velocity, end[2:], atol=1e-9)
+    assert np.allclose(prim.end_velocity, 0.0, atol=1e-9)
+
+
+@pytest.mark.slow
+def test_an_end_on_the_lattice_takes_one_verified_maneuver_to_the_goal() -> None:
+    """Trial 19 of the random pairs ends with a stop and a 4 s rest-to-rest step onto
+    the goal; with online ends one maneuver from the cruise before them runs straight to
+    rest at the goal's rest trim, whose S holds its G; it holds again from points its
+    verification did not choose, and the task ends 2.25 s sooner."""
+    row, result, arrival = _arrived_sooner(19)
+    assert row["time_s"] == pytest.approx(row["time_without_s"] - arrival.saving, abs=0.25)
+    lib = result.library
+    _check_domains(result, arrival)
+    goal = lib.policy(arrival.plan.rest_row)
+    assert goal.policy.primitive.kind is PrimitiveKind.REST
+    maneuver = arrival.plan.catch
+    assert goal.start_domain.contains_domain(maneuver.goal_domain)
+    assert np.allclose(maneuver.start_xy + maneuver.primitive.displacement, goal.start_xy)
+    assert_holds_from_unchosen_points(
+        arrival.plan.catch.policy,
+        lib.palette.options,
+        boundary_points=24,
+        interior=6,
+        seed=19,
+        placements=(0,),
+    )
+
+
+@pytest.mark.slow
+def test_an_end_off_the_lattice_hands_over_to_the_regulator_at_the_goal() -> None:
+    """Trial 16's goal is off the lattice: the lattice stops, steps, and shifts onto the
+    grid point next to the goal before the regulator there holds it (11.6 s). With online
+    ends one maneuver from the cruise runs to rest at the goal itself and the
+    regulator, whose S holds its G, settles it there: the task ends in 6.5 s."""
+    row, result, arrival = _arrived_sooner(16)
+    _check_domains(result, arrival)
+    assert arrival.plan.rest_row == TERMINAL
+    ep = result.episodes[0]
+    (k,) = [k for k, e in enumerate(ep.events) if k > 0 and e.to_policy == CAPTURE]
+    assert ep.events[k + 1].reason is EventReason.HOLD_GOAL
+    maneuver = arrival.plan.catch
+    goal = maneuver.start_xy + maneuver.primitive.displacement
+    assert np.hypot(*(goal - np.array([row["goal_x"], row["goal_y"]]))) <= 1e-9
+    assert_holds_from_unchosen_points(
+        arrival.plan.catch.policy,
+        result.library.palette.options,
+        boundary_points=24,
+        interior=6,
+        seed=16,
+        placements=(0,),
+    )
+
+
+def test_the_kinematic_bound_is_a_lower_bound_on_an_end_maneuver(palette) -> None:
+    """From cruise (and from rest) to rest: ``online.shortest`` never exceeds the
+    designed maneuver's duration, a design started from it is the design started from
+    zero, and the designed nonic starts at the given velocity and ends at rest."""
+    v = np.array([[0.5, 0.0], [0.35359116, 0.35359116], [0.0, 0.0]])
+    ends = [(0.5, 0.0), (0.9, 0.45), (1.2, -0.5), (0.3, 0.3), (0.01, 0.0)]
+    zero = np.zeros(2)
+    designed = 0
+    for vel in v:
+        u = vel / np.hypot(*vel) if np.any(vel) else np.array([1.0, 0.0])
+        for a, c in ends:
+            end = a * u + c * np.array([-u[1], u[0]])
+            bound = shortest(zero, end, vel, zero, palette)
+            full = design(zero, end, vel, zero, palette, 0.0, name="arrival")
+            if full is None:
+                continue
+            designed += 1
+            assert bound <= full.duration
+            assert np.allclose(full.start_velocity, vel) and np.allclose(full.end_velocity, 0)
+            assert full.end_trim == "rest"
+            assert full.start_trim == ("cruise" if np.any(vel) else "rest")
+            again = design(zero, end, vel, zero, palette, bound, name="arrival")
+            assert again is not None and again.duration == full.duration
+    assert designed >= 8
