@@ -13,7 +13,7 @@ import pytest
 
 from gracenav.errors import PlanningError
 from gracenav.execution import CAPTURE, TERMINAL, EventReason, HybridController, TaskStatus
-from gracenav.execution.capture import ShiftTerminal, TerminalPolicy
+from gracenav.execution.capture import ShiftTerminal, TerminalPolicy, capture_for
 from gracenav.scenarios import parse_scenario, run_scenario
 from gracenav.scenarios.run import prepare_library
 from gracenav.world import forest_map, save_ros_map
@@ -189,9 +189,16 @@ def test_a_start_near_walls_is_caught_onto_a_rest_trim_that_reaches_the_goal() -
     """At rest 0.3 m beyond the footprint from two walls, with the default stopping
     allowance: the start is served by shifts onto a rest trim with a way out (a shift
     whose S, placed at the grid point next to the start, holds it; before, a still
-    catch first, and two shifts before the palette had fine copies)."""
+    catch first, and two shifts before the palette had fine copies). Online starts off:
+    the capture is what this looks at; with them, the next test."""
     scenario = parse_scenario(
-        _task(_inline(CLUTTERED), (3.0, 2.25), (5.5, 0.5)), source="cluttered.yaml"
+        _task(
+            _inline(CLUTTERED),
+            (3.0, 2.25),
+            (5.5, 0.5),
+            planner={"cost": "time", "online_starts": False},
+        ),
+        source="cluttered.yaml",
     )
     assert scenario.speed_clearance == pytest.approx(0.1)
     result = run_scenario(scenario)
@@ -209,6 +216,30 @@ def test_a_start_near_walls_is_caught_onto_a_rest_trim_that_reaches_the_goal() -
     assert run.reached_goal and not run.contact and run.min_clearance_m >= 0.0
     assert run.final_error_m is not None and run.final_error_m <= 0.01
     assert run.balancing_s == 0.0
+
+
+def test_a_start_near_walls_launched_online_clears_them() -> None:
+    """The same start near two walls with online starts (the default): one maneuver
+    designed at the start, whose S holds the start and whose G the next policy's S
+    holds, with its swept D' clear of the walls; the task reaches the goal without
+    contact, no later than through the shifts."""
+    doc = _task(_inline(CLUTTERED), (3.0, 2.25), (5.5, 0.5))
+    result = run_scenario(parse_scenario(doc, source="cluttered.yaml"))
+    doc["planner"] = {"cost": "time", "online_starts": False}
+    shifted = run_scenario(parse_scenario(doc, source="cluttered.yaml"))
+    run, ep = result.runs[0], result.episodes[0]
+    assert run.reached_goal and not run.contact and run.min_clearance_m >= 0.0
+    assert run.final_error_m is not None and run.final_error_m <= 0.01
+    assert run.balancing_s == 0.0 and run.verified_recoveries == 0
+    assert run.time_s <= shifted.runs[0].time_s + 1e-9
+    (t0, plan), *_ = ep.captures
+    assert t0 == 0.0 and plan.catch.policy.name == "launch"
+    assert plan.catch.start_domain.contains(np.array([5.5, 0.5, 0.0, 0.0]))
+    after = result.library.policy(plan.rest_row)
+    assert after.start_domain.contains_domain(plan.catch.goal_domain)
+    capture = capture_for(result.library)
+    path, reach = capture.swept(plan.catch.policy)
+    assert np.all(capture.clear(plan.catch.start_xy + path, reach))
 
 
 def test_a_start_on_another_sub_lattice_ends_through_another_rest_trim() -> None:

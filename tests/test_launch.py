@@ -35,20 +35,22 @@ def _launched_sooner(trial: int):  # type: ignore[no-untyped-def]
 
 
 @pytest.mark.slow
-def test_a_start_takes_one_verified_maneuver_onto_a_cruise_trim() -> None:
+def test_a_start_takes_one_verified_maneuver_onto_a_cruise_state() -> None:
     """Trial 5 of the random pairs (at rest 0.35 m from the room's obstacles): a shift and
     a maneuver from rest without the option, one maneuver from the start onto a library
-    cruise trim with it; every containment of the switch holds exactly, the maneuver
-    holds again from points its verification did not choose, and the task ends sooner
-    without touching anything."""
+    policy that starts at cruise with it; every containment of the switch holds exactly,
+    the maneuver holds again from points its verification did not choose, and the task
+    ends sooner without touching anything."""
     row, result, plan = _launched_sooner(5)
     ep, lib = result.episodes[0], result.library
     assert ep.events[0].to_policy == CAPTURE
     launch = plan.catch
     start = np.array([row["start_x"], row["start_y"], 0.0, 0.0])
     assert launch.start_domain.contains(start)
+    # Onto a policy that starts at a cruise state (here a turn from it), not a capture.
     trim = lib.policy(plan.rest_row)
-    assert trim.policy.primitive.kind is PrimitiveKind.CRUISE
+    assert np.hypot(*lib.start_state[plan.rest_row, 2:]) == pytest.approx(0.5, abs=1e-3)
+    assert trim.policy.primitive.kind is not PrimitiveKind.REST and not trim.policy.capture
     assert trim.start_domain.contains_domain(launch.goal_domain)
     switch = ep.events[1]
     assert switch.reason is EventReason.GRACEFUL and switch.to_policy == plan.rest_row
@@ -149,3 +151,36 @@ def test_a_start_designed_online_holds_under_sensor_noise(trial) -> None:
     assert ep.events[1].time == pytest.approx(plan.catch.duration, abs=1.5 / 1024)
     assert all(e.reason in (EventReason.START, EventReason.GRACEFUL) for e in ep.events[:-1])
     assert row["verified_recoveries"] == 0
+
+
+@pytest.mark.slow
+def test_a_start_launches_onto_a_turn_where_the_cruise_trims_lead_nowhere() -> None:
+    """Trial 14 of the random pairs starts in a capture regulator's S only; every cruise
+    trim ahead of it runs into a dead end (no way to the goal) or lies too close to
+    reach, so online starts onto cruise trims alone leave the regulator. A maneuver
+    onto the turn that starts at one of those cruise states reaches the goal 2.8 s
+    sooner, and its S holds the maneuver's G."""
+    row, result, plan = _launched_sooner(14)
+    lib = result.library
+    after = lib.policy(plan.rest_row)
+    assert after.policy.primitive.kind is PrimitiveKind.MANEUVER
+    assert np.hypot(*lib.start_state[plan.rest_row, 2:]) == pytest.approx(0.5, abs=1e-3)
+    assert after.start_domain.contains_domain(plan.catch.goal_domain)
+    row0, _ = pairs_trial(14, online_starts=False)
+    assert row["time_s"] <= row0["time_s"] - 2.5
+
+
+@pytest.mark.slow
+def test_a_start_is_priced_by_what_its_way_runs() -> None:
+    """Trial 19 of the random pairs: by the tree's prices, a maneuver from the start onto
+    a turn (20.9 s) beats the capture regulator that holds the start (24.75 s), but the
+    regulator's way runs through fine copies, which the tree prices at twice their
+    duration; priced by what each way runs (and what an end designed online saves on
+    it), the regulator is kept, and the task runs as without online starts (the
+    maneuver's way ran 4.4 s longer)."""
+    row0, _ = pairs_trial(19, online_starts=False)
+    row, res = pairs_trial(19, online_starts=True)
+    assert row0["reached_goal"] and row["reached_goal"]
+    first = res.episodes[0].events[0].to_policy
+    assert first >= 0 and res.library.policy(first).policy.capture
+    assert row["time_s"] == pytest.approx(row0["time_s"], abs=1.5 / 1024)

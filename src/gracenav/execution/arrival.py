@@ -44,7 +44,7 @@ from gracenav.policies.primitive import SampledPrimitive
 if TYPE_CHECKING:
     from gracenav.library import PolicyLibrary
 
-__all__ = ["ArrivalOptions", "ArrivalPlan", "arrival_plan"]
+__all__ = ["ArrivalOptions", "ArrivalPlan", "arrival_plan", "way_time"]
 
 FloatArray = NDArray[np.float64]
 
@@ -138,6 +138,28 @@ def arrival_plan(
     return known[key]
 
 
+def way_time(library: PolicyLibrary, way: Sequence[int], *, skip_holds: bool = True) -> float:
+    """How long (s) the library rows ``way`` run, up to, not including, the last: each
+    its own duration (the trees price a fine copy at twice its own), and with
+    ``skip_holds`` none for the rest trims on the way (the policy after a rest trim
+    starts as soon as its S holds the state); a capture regulator in full."""
+    return float(np.sum(_run_times(library, np.asarray(way, dtype=np.int64), skip_holds)))
+
+
+def _run_times(library: PolicyLibrary, way: NDArray[np.int64], skip_holds: bool) -> FloatArray:
+    def skipped(row: int) -> bool:
+        pol = library.policy(row).policy
+        return pol.primitive.kind is PrimitiveKind.REST and not pol.capture
+
+    return np.array(
+        [
+            0.0 if skip_holds and skipped(r) else library.policy(r).duration
+            for r in way[:-1].tolist()
+        ],
+        dtype=float,
+    )
+
+
 def _arrival_plan(
     library: PolicyLibrary,
     way: NDArray[np.int64],
@@ -158,14 +180,7 @@ def _arrival_plan(
         goal, then_start, then = hold.start_xy, hold.start_domain, TERMINAL
     zero = np.zeros(2)
     # What the way runs after each of its policies, up to the goal's rest trim.
-    runs = np.array(
-        [
-            0.0
-            if skip_holds and library.policy(r).policy.primitive.kind is PrimitiveKind.REST
-            else library.policy(r).duration
-            for r in way[:-1].tolist()
-        ]
-    )
+    runs = _run_times(library, way, skip_holds)
     after = np.concatenate([np.cumsum(runs[::-1])[::-1][1:], [0.0]])
     picks: list[tuple[float, int, float, float]] = []
     for k, row in enumerate(way[:-1].tolist()):

@@ -32,11 +32,11 @@ from numpy.typing import ArrayLike, NDArray
 
 from gracenav.control import CONTROL_RATE, TrackingLaw
 from gracenav.errors import ConfigError, PlanningError
-from gracenav.execution.arrival import ArrivalPlan, arrival_plan
+from gracenav.execution.arrival import ArrivalPlan, arrival_plan, way_time
 from gracenav.execution.capture import CapturePlan, Terminal, TerminalPolicy, capture_for
 from gracenav.execution.episode import Episode, ExecutionLog, drive
 from gracenav.execution.goals import ON_LATTICE, Goals
-from gracenav.execution.launch import launch_plan
+from gracenav.execution.launch import LaunchOptions, launch_plan
 from gracenav.execution.obstacles import ObstacleTracker
 from gracenav.execution.supervisor import BALANCING_MARGIN, Supervisor
 from gracenav.execution.types import (
@@ -319,19 +319,17 @@ class HybridController:
             return None
         return caught[1], trees[caught[1].approach], CAPTURE, caught[2]
 
-    def _launch(
+    def _start_price(
         self,
-        x: FloatArray,
         tree: PolicyTree | LazyPolicyTree,
         current: int,
         plan: CapturePlan | None,
         *,
         skip_holds: bool,
-    ) -> CapturePlan | None:
-        """A start through one maneuver designed and verified at the start
-        (:func:`gracenav.execution.launch.launch_plan`) where the start would otherwise
-        take a capture or a capture regulator, or nothing (unpriced); None where it does
-        not pay or none is verified.
+    ) -> float | None:
+        """What the start costs where a maneuver designed at the start
+        (:func:`gracenav.execution.launch.launch_plan`) may replace it: a capture or a
+        capture regulator, priced as it runs, or nothing (inf); None where it may not.
 
         The capture is priced as it runs: its plan's cost less, with ``skip_holds``, the
         rest trim it ends on when that is skipped (the policy after it starts at once)
@@ -349,7 +347,7 @@ class HybridController:
             budget = float(tree.cost_to_go[current])
             row = int(tree.next_policy[current])
         elif current < 0 and plan is None:
-            budget, row = math.inf, -1
+            return math.inf
         else:
             return None
         if skip_holds and row >= 0 and lib.policy(row).policy.primitive.kind is PrimitiveKind.REST:
@@ -363,9 +361,23 @@ class HybridController:
                     and lib.policy(after).policy.starts_from_still_band
                 ):
                     budget -= catch.tail
+        return budget
+
+    def _launch(
+        self,
+        x: FloatArray,
+        tree: PolicyTree | LazyPolicyTree,
+        budget: float,
+        *,
+        maneuvers: bool,
+    ) -> CapturePlan | None:
+        """The maneuver from the start (:func:`gracenav.execution.launch.launch_plan`)
+        onto a cruise trim, or with ``maneuvers`` onto any policy that starts at a
+        cruise state, priced below ``budget``; None where none is."""
         lean = (float(np.hypot(*x[2:4])), float(np.hypot(*x[6:8])))
         p = position_state(x, self.radius)
-        return launch_plan(self.library, p, lean, tree.cost_to_go, budget)
+        opts = LaunchOptions(maneuvers=maneuvers)
+        return launch_plan(self.library, p, lean, tree.cost_to_go, budget, opts)
 
     def _arrival(
         self,
@@ -517,23 +529,50 @@ class HybridController:
             if other is not None:
                 cand, tree, current, plan = other
                 goal_ids, terminals = [cand.approach], [cand]
+        # The ways to start: as found, or through a maneuver designed at the start onto
+        # a cruise trim, or onto any policy from a cruise state. On a whole tree each is
+        # priced as it runs (its way from the first library policy by the durations
+        # that run, not as the tree prices it: fine copies at twice their duration,
+        # holds in full), less what an end designed online saves on it; the cheapest
+        # is taken.
+        price = None
         if options.online_starts and dyn is None and len(goals) == 1:
             # Priced against whatever the start takes otherwise, that other end included
             # (unpriced only where nothing else serves the start).
-            launched = self._launch(x, tree, current, plan, skip_holds=options.skip_holds)
-            if launched is not None:
-                plan, current = launched, CAPTURE
+            price = self._start_price(tree, current, plan, skip_holds=options.skip_holds)
+        starts: list[tuple[float, CapturePlan | None, int]] = [
+            (price if price is not None else 0.0, plan, current)
+        ]
+        if price is not None:
+            for maneuvers in (True, False):
+                launched = self._launch(x, tree, price, maneuvers=maneuvers)
+                if launched is not None:
+                    starts.append((launched.cost, launched, CAPTURE))
+        ends = options.online_ends and dyn is None and len(goals) == 1 and loops == 1
         arrival = None
-        if (
-            options.online_ends
-            and dyn is None
-            and len(goals) == 1
-            and loops == 1
-            and isinstance(tree, PolicyTree)
-        ):
-            arrival = self._arrival(
-                goals[0], terminals[0], tree, current, plan, skip_holds=options.skip_holds
-            )
+        if isinstance(tree, PolicyTree) and (ends or len(starts) > 1):
+            best = math.inf
+            for cost, way_plan, way_current in starts:
+                first = way_plan.rest_row if way_current == CAPTURE and way_plan else way_current
+                if first >= 0 and tree.reachable(first):
+                    way = tree.path_from(first)
+                    run = way_time(self.library, way, skip_holds=options.skip_holds)
+                    cost += run - float(tree.cost_to_go[first])
+                end = None
+                if ends:
+                    end = self._arrival(
+                        goals[0],
+                        terminals[0],
+                        tree,
+                        way_current,
+                        way_plan,
+                        skip_holds=options.skip_holds,
+                    )
+                total = cost - (end.saving if end is not None else 0.0)
+                if total < best:
+                    best, plan, current, arrival = total, way_plan, way_current, end
+        else:
+            _, plan, current = min(starts, key=lambda s: s[0])
         if current < 0 and plan is None:
             hits = self.library.start_domain_contains(p[None, :])
             if hits.nnz == 0:

@@ -68,11 +68,16 @@ class LaunchOptions:
         its verifications; one whose size test fails even at S = G runs none and does
         not count; the still band's verification only for the one that would be
         chosen).
+    maneuvers : bool
+        Launch onto any library policy that starts at a cruise state (a trim, or a
+        maneuver from one: a turn may reach the goal where the trim runs into a wall),
+        not only onto cruise trims.
     """
 
     ahead: tuple[float, float] = (0.3, 2.0)
     across: float = 0.5
     candidates: int = 4
+    maneuvers: bool = True
 
 
 def launch_plan(
@@ -123,8 +128,16 @@ def _launch_plan(
     if catch is None or lean[0] > catch.still_lean[0] or lean[1] > catch.still_lean[1]:
         return None
     start, zero = p[:2], np.zeros(2)
-    rows = library.trim_indices(PrimitiveKind.CRUISE)
-    rows = rows[np.isfinite(cost_to_go[rows]) & ~library.is_fine(rows)]
+    if opts.maneuvers:
+        # Every policy that starts at a cruise state: the trims and the maneuvers
+        # from them (a turn may reach the goal where the trim runs into a wall).
+        speed0 = np.hypot(library.start_state[:, 2], library.start_state[:, 3])
+        rows = np.flatnonzero((speed0 > 1e-6) & np.isfinite(cost_to_go))
+        rows = rows[~library.types.is_capture[library.type_index[rows]]]
+    else:
+        rows = library.trim_indices(PrimitiveKind.CRUISE)
+        rows = rows[np.isfinite(cost_to_go[rows])]
+    rows = rows[~library.is_fine(rows)]
     v = library.start_state[rows, 2:4]
     speed = np.hypot(v[:, 0], v[:, 1])
     u = v / speed[:, None]
