@@ -3,21 +3,22 @@ extension, on by default: :attr:`~gracenav.execution.ExecutionOptions.online_sta
 
 A task that starts at rest off the lattice reaches it through a capture (a shift onto a
 rest trim, then a maneuver from rest) or a capture regulator. One maneuver from the start
-itself onto the state of a library cruise trim ahead does both at once
+itself onto the start state of a library policy ahead that starts at cruise (a cruise
+trim, or a maneuver from one) does both at once
 (``bench/bench_starts.py``: 1.875–2.75 s against 3.67–4.20 s). The palette cannot hold
 it (the start is anywhere), so it is made when the task starts as the palette's
 maneuvers and policies are made, in the one frame it runs in (the palette's are planned
 and verified at a second placement too, a quarter turn, since the library places them
-at every quarter turn): the nonic from rest at the start to the trim's start state
+at every quarter turn): the nonic from rest at the start to that policy's start state
 (:mod:`gracenav.execution.online`); its start domain sized by bisection, the largest
 that verifies on the 3D model from points on the surface of S and passes the size test
-that the trim's S holds its G (exact ellipsoid containment, the prepares relation) and
+that the policy's S holds its G (exact ellipsoid containment, the prepares relation) and
 its swept D' grown by the footprint is clear of the map
 (:func:`gracenav.policies.size_policy`), then verified from the still band
 (:func:`gracenav.policies.catches.verify_still_start`). It is used only where S holds
-the start and its duration plus the trim's cost-to-go is below what the start costs
-otherwise. It runs as a capture whose last policy is followed by that trim
-(:class:`CapturePlan`).
+the start and its duration plus the policy's cost-to-go is below what the start costs
+otherwise (the hybrid controller then compares the ways to start by what they run). It
+runs as a capture whose last policy is followed by that policy (:class:`CapturePlan`).
 """
 
 from __future__ import annotations
@@ -89,8 +90,9 @@ def launch_plan(
     options: LaunchOptions | None = None,
 ) -> CapturePlan | None:
     """The cheapest verified maneuver from the start ``state`` (x, y, ẋ, ẏ, the ball's)
-    onto a library cruise trim (not a fine copy: its smaller domains leave sensor noise
-    less room), as a capture plan priced below ``budget`` (s), or None.
+    onto a library policy that starts at a cruise state (``options.maneuvers``; else a
+    cruise trim; never a fine copy: its smaller domains leave sensor noise less room),
+    as a capture plan priced below ``budget`` (s), or None.
 
     ``lean`` is the measured lean and lean rate (norms, rad and rad/s): a launch starts
     only within the still band it is verified from (``CatchOptions.still_lean``).

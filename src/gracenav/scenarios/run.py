@@ -332,9 +332,16 @@ def check_task(scenario: Scenario, prepared: PreparedLibrary, palette: Any | Non
 def _check_task(scenario: Scenario, hc: Any, options: Any) -> None:
     """Every goal and every start must be possible before the first run starts: a bad
     third start should not cost the first two runs. Each start is probed by starting
-    the task (:meth:`HybridController.reset`); the message names the key."""
+    the task (:meth:`HybridController.reset`); the message names the key.
+
+    The probe designs nothing online: an end designed online never makes a task
+    possible, and a start designed online only where nothing else serves the start, so
+    a start is probed with online starts only if it is impossible without them (a
+    campaign's draws are checked here, most of them refused)."""
     from gracenav.errors import PlanningError
     from gracenav.sim import state_from_position
+
+    bare = dataclasses.replace(options, online_starts=False, online_ends=False)
 
     ptp = scenario.kind == "point_to_point"
     for j, goal in enumerate(scenario.goals):
@@ -346,7 +353,12 @@ def _check_task(scenario: Scenario, hc: Any, options: Any) -> None:
     for i, start in enumerate(scenario.starts):
         x0 = state_from_position(np.asarray(start), hc.gains.params.ball_radius)
         try:
-            hc.reset(x0, scenario.goals, options=options)
+            try:
+                hc.reset(x0, scenario.goals, options=bare)
+            except PlanningError:
+                if not options.online_starts:
+                    raise
+                hc.reset(x0, scenario.goals, options=dataclasses.replace(bare, online_starts=True))
         except PlanningError as exc:
             key = f"task.starts[{i}]" if ptp else "task.start"
             raise PlanningError(f"{scenario.source}: '{key}': {exc}") from None
