@@ -35,11 +35,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from gracenav.execution.capture import CapturePlan, PlacedPolicy, capture_for
-from gracenav.execution.online import design, shortest
+from gracenav.execution.capture import CapturePlan, PlacedPolicy
+from gracenav.execution.online import design, shortest, size_where_it_runs
 from gracenav.execution.types import TERMINAL
-from gracenav.policies import MotionPolicy, PrimitiveKind, domain_shape, size_policy
-from gracenav.policies.primitive import SampledPrimitive
+from gracenav.policies import PrimitiveKind
 
 if TYPE_CHECKING:
     from gracenav.library import PolicyLibrary
@@ -194,9 +193,6 @@ def _arrival_plan(
             picks.append((least_time - after[k], row, least_time, after[k]))
     picks.sort()
 
-    gains, vopts = palette.gains, palette.options
-    shape = domain_shape(gains, horizon=vopts.shape_horizon)
-    capture = capture_for(library)
     best: ArrivalPlan | None = None
     verified = 0
     for bound, row, least_time, rest_of_way in picks:
@@ -208,23 +204,7 @@ def _arrival_plan(
         if maneuver is None or rest_of_way - maneuver.duration <= saved:
             continue
         start = end[:2].copy()
-
-        def fits(pol: MotionPolicy, start: FloatArray = start) -> bool:
-            # What follows at the goal holds G (whatever the size) and the swept D' grown
-            # by the footprint is clear (near a wall a smaller S rather than none).
-            if not then_start.contains_domain(PlacedPolicy(pol, 0.0, start).goal_domain):
-                return False
-            path, reach = capture.swept(pol)
-            return bool(np.all(capture.clear(start + path, reach)))
-
-        policy = size_policy(
-            SampledPrimitive.from_primitive(maneuver),
-            gains,
-            vopts,
-            shape=shape,
-            fits=fits,
-            placements=(0,),
-        )
+        policy = size_where_it_runs(library, maneuver, start, then_start)
         if policy.report is None:
             continue  # not even S = G fits: no verification ran
         verified += 1

@@ -31,15 +31,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from gracenav.execution.capture import CapturePlan, PlacedPolicy, capture_for
-from gracenav.execution.online import design, shortest
-from gracenav.policies import MotionPolicy, PrimitiveKind, domain_shape, size_policy
+from gracenav.execution.capture import CapturePlan, PlacedPolicy
+from gracenav.execution.online import design, shortest, size_where_it_runs
+from gracenav.policies import MotionPolicy, PrimitiveKind
 from gracenav.policies.catches import verify_still_start
-from gracenav.policies.primitive import SampledPrimitive
 
 if TYPE_CHECKING:
     from gracenav.library import PolicyLibrary
-    from gracenav.policies.domains import EllipsoidalDomain
 
 __all__ = ["LaunchOptions", "launch_plan"]
 
@@ -147,9 +145,7 @@ def _launch_plan(
     ahead = np.sum(w * u, axis=1)
     across = u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]
     near = (ahead >= opts.ahead[0]) & (ahead <= opts.ahead[1]) & (np.abs(across) <= opts.across)
-    gains, vopts = palette.gains, palette.options
-    shape = domain_shape(gains, horizon=vopts.shape_horizon)
-    capture = capture_for(library)
+    vopts = palette.options
     # Each trim priced at its cost-to-go plus the shortest maneuver kinematics allow
     # (a lower bound on the designed one's), cheapest first: the search stops at the
     # first bound above the best found.
@@ -174,26 +170,7 @@ def _launch_plan(
         cost = maneuver.duration + float(cost_to_go[row])
         if cost >= least:
             continue
-        trim_start = library.policy(row).start_domain
-
-        def fits(pol: MotionPolicy, trim_start: EllipsoidalDomain = trim_start) -> bool:
-            # The trim's S holds G (whatever the size) and the swept D' grown by the
-            # footprint is clear (a start near a wall takes a smaller S rather than none).
-            if not trim_start.contains_domain(PlacedPolicy(pol, 0.0, start).goal_domain):
-                return False
-            path, reach = capture.swept(pol)
-            return bool(np.all(capture.clear(start + path, reach)))
-
-        # Verified in the one frame it runs in (the palette's policies also at a quarter
-        # turn, since the library places them at every quarter turn).
-        policy = size_policy(
-            SampledPrimitive.from_primitive(maneuver),
-            gains,
-            vopts,
-            shape=shape,
-            fits=fits,
-            placements=(0,),
-        )
+        policy = size_where_it_runs(library, maneuver, start, library.policy(row).start_domain)
         if policy.report is None:
             continue  # not even S = G fits: no verification ran
         verified += 1

@@ -18,15 +18,20 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from gracenav.execution.capture import PlacedPolicy, capture_for
+from gracenav.policies import MotionPolicy, domain_shape, size_policy
+from gracenav.policies.primitive import SampledPrimitive
 from gracenav.primitives.design import passes_screen
 from gracenav.primitives.motion import Maneuver, PrimitiveReport, PrimitiveSetOptions
 from gracenav.primitives.references import NonicReference
 from gracenav.primitives.shape_planner import plan_shape_trajectory
 
 if TYPE_CHECKING:
+    from gracenav.library import PolicyLibrary
     from gracenav.palette import Palette
+    from gracenav.policies.domains import EllipsoidalDomain
 
-__all__ = ["admissible", "design", "shortest"]
+__all__ = ["admissible", "design", "shortest", "size_where_it_runs"]
 
 FloatArray = NDArray[np.float64]
 
@@ -120,3 +125,37 @@ def design(
             reports=(report, report),
         )
     return None
+
+
+def size_where_it_runs(
+    library: PolicyLibrary,
+    maneuver: Maneuver,
+    start: FloatArray,
+    then: EllipsoidalDomain,
+) -> MotionPolicy:
+    """The policy of ``maneuver`` placed at ``start`` (heading 0), its S sized by
+    :func:`gracenav.policies.size_policy` as the palette's, verified on the 3D model in
+    the one frame it runs in (the palette's policies also at a quarter turn, since the
+    library places them at every quarter turn), with the size test that ``then`` (the S
+    of what follows, world frame) holds its G (exact containment) and its swept D' grown
+    by the footprint is clear of the map: near a wall a smaller S rather than none. Its
+    report is None where not even S = G passes the size test (no verification ran)."""
+    palette = library.palette
+    gains, vopts = palette.gains, palette.options
+    capture = capture_for(library)
+    at = np.asarray(start, dtype=float)
+
+    def fits(pol: MotionPolicy) -> bool:
+        if not then.contains_domain(PlacedPolicy(pol, 0.0, at).goal_domain):
+            return False
+        path, reach = capture.swept(pol)
+        return bool(np.all(capture.clear(at + path, reach)))
+
+    return size_policy(
+        SampledPrimitive.from_primitive(maneuver),
+        gains,
+        vopts,
+        shape=domain_shape(gains, horizon=vopts.shape_horizon),
+        fits=fits,
+        placements=(0,),
+    )
