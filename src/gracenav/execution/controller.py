@@ -383,24 +383,17 @@ class HybridController:
         self,
         goal: ArrayLike,
         terminal: Terminal | None,
-        tree: PolicyTree,
-        current: int,
-        plan: CapturePlan | None,
+        way: list[int],
         *,
         skip_holds: bool,
     ) -> ArrivalPlan | None:
-        """The end maneuver (:func:`gracenav.execution.arrival.arrival_plan`) on the
-        tree's way from the first library policy the task runs (the one ``current`` is,
-        or the rest trim a capture ``plan`` leaves the robot on) to a goal at rest: the
-        goal policy's point, or off the lattice the capture regulator the ``terminal``
-        places there; None where there is none or it does not pay."""
+        """The end maneuver (:func:`gracenav.execution.arrival.arrival_plan`) on ``way``
+        (the tree's way from the first library policy the task runs) to a goal at rest:
+        the goal policy's point, or off the lattice the capture regulator the
+        ``terminal`` places there; None where there is none or it does not pay."""
         g = np.asarray(goal, dtype=float)
         if np.any(g[2:] != 0.0):
             return None
-        first = plan.rest_row if current == CAPTURE and plan is not None else current
-        if first < 0 or not tree.reachable(first):
-            return None
-        way = tree.path_from(first)
         if terminal is None:
             if np.linalg.norm(self.library.start_xy[way[-1]] - g[:2]) > ON_LATTICE:
                 return None
@@ -554,20 +547,14 @@ class HybridController:
             best = math.inf
             for cost, way_plan, way_current in starts:
                 first = way_plan.rest_row if way_current == CAPTURE and way_plan else way_current
+                end = None
                 if first >= 0 and tree.reachable(first):
                     way = tree.path_from(first)
                     run = way_time(self.library, way, skip_holds=options.skip_holds)
                     cost += run - float(tree.cost_to_go[first])
-                end = None
-                if ends:
-                    end = self._arrival(
-                        goals[0],
-                        terminals[0],
-                        tree,
-                        way_current,
-                        way_plan,
-                        skip_holds=options.skip_holds,
-                    )
+                    if ends:
+                        skip = options.skip_holds
+                        end = self._arrival(goals[0], terminals[0], way, skip_holds=skip)
                 total = cost - (end.saving if end is not None else 0.0)
                 if total < best:
                     best, plan, current, arrival = total, way_plan, way_current, end

@@ -853,9 +853,8 @@ class Supervisor:
                 if nxt == TERMINAL:
                     # An end maneuver to a goal off the lattice: the capture regulator
                     # there, the terminal or the hold after a terminal's shifts.
-                    if isinstance(term, ShiftTerminal) and term.hold.start_domain.contains(p):
-                        x = self.x
-                        if term.accepts_lean(float(np.hypot(*x[2:4])), float(np.hypot(*x[6:8]))):
+                    if isinstance(term, ShiftTerminal):
+                        if self._may_hold(self.x):
                             self.term_stage = len(term.shifts)
                             return EventReason.HOLD_GOAL, TERMINAL
                     elif term is not None and self._terminal_starts(term, p):
