@@ -10,7 +10,6 @@ from reverify import assert_holds_from_unchosen_points
 
 from gracenav.execution import CAPTURE, TERMINAL, EventReason, ExecutionOptions
 from gracenav.execution.capture import capture_for
-from gracenav.execution.online import design, shortest
 from gracenav.policies import PrimitiveKind
 
 TICK = 1.0 / 1024
@@ -114,29 +113,3 @@ def test_an_end_off_the_lattice_hands_over_to_the_regulator_at_the_goal() -> Non
         seed=16,
         placements=(0,),
     )
-
-
-def test_the_kinematic_bound_is_a_lower_bound_on_an_end_maneuver(palette) -> None:
-    """From cruise (and from rest) to rest: ``online.shortest`` never exceeds the
-    designed maneuver's duration, a design started from it is the design started from
-    zero, and the designed nonic starts at the given velocity and ends at rest."""
-    v = np.array([[0.5, 0.0], [0.35359116, 0.35359116], [0.0, 0.0]])
-    ends = [(0.5, 0.0), (0.9, 0.45), (1.2, -0.5), (0.3, 0.3), (0.01, 0.0)]
-    zero = np.zeros(2)
-    designed = 0
-    for vel in v:
-        u = vel / np.hypot(*vel) if np.any(vel) else np.array([1.0, 0.0])
-        for a, c in ends:
-            end = a * u + c * np.array([-u[1], u[0]])
-            bound = shortest(zero, end, vel, zero, palette)
-            full = design(zero, end, vel, zero, palette, 0.0, name="arrival")
-            if full is None:
-                continue
-            designed += 1
-            assert bound <= full.duration
-            assert np.allclose(full.start_velocity, vel) and np.allclose(full.end_velocity, 0)
-            assert full.end_trim == "rest"
-            assert full.start_trim == ("cruise" if np.any(vel) else "rest")
-            again = design(zero, end, vel, zero, palette, bound, name="arrival")
-            assert again is not None and again.duration == full.duration
-    assert designed >= 8

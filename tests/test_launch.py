@@ -10,7 +10,6 @@ from reverify import assert_holds_from_unchosen_points
 
 from gracenav.execution import CAPTURE, EventReason, ExecutionOptions
 from gracenav.execution.capture import capture_for
-from gracenav.execution.online import design, shortest
 from gracenav.policies import PrimitiveKind
 from gracenav.policies.catches import band_leans
 
@@ -96,28 +95,6 @@ def test_a_start_near_obstacles_takes_a_smaller_start_domain() -> None:
     start = np.array([row["start_x"], row["start_y"], 0.0, 0.0])
     assert launch.start_domain.contains(start)
     assert lib.policy(plan.rest_row).start_domain.contains_domain(launch.goal_domain)
-
-
-def test_the_kinematic_bound_is_a_lower_bound_on_the_design(palette) -> None:
-    """``online.shortest`` (speed and direction alone) never exceeds the designed maneuver's
-    duration, and a design started from it is the design started from zero."""
-    v = np.array([[0.5, 0.0], [0.0, -0.5], [0.35359116, 0.35359116], [-0.35359116, 0.35359116]])
-    ends = [(0.6, 0.1), (1.2, -0.3), (0.9, 0.45), (0.45, 0.0), (1.8, 0.2)]
-    designed = 0
-    for vel in v:
-        u = vel / np.hypot(*vel)
-        for a, c in ends:
-            end = a * u + c * np.array([-u[1], u[0]])
-            zero = np.zeros(2)
-            bound = shortest(zero, end, zero, vel, palette)
-            full = design(zero, end, zero, vel, palette, 0.0, name="launch")
-            if full is None:
-                continue
-            designed += 1
-            assert bound <= full.duration
-            again = design(zero, end, zero, vel, palette, bound, name="launch")
-            assert again is not None and again.duration == full.duration
-    assert designed >= 12
 
 
 @pytest.mark.slow
