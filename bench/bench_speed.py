@@ -29,7 +29,10 @@ pairs, the campaign's draws are then checked against that library);
 ``--no-online-starts`` sets ``planner.online_starts: false`` on both (no start at rest
 through one maneuver designed and verified at the start; the baseline ignores it), and
 ``--no-online-ends`` ``planner.online_ends: false`` (no end through one maneuver designed
-and verified when the task starts, straight to rest at the goal). ``--breakdown``
+and verified when the task starts, straight to rest at the goal);
+``--no-position-filter`` sets ``simulation.position_filter: false`` on both pairs'
+measurements (both planners act on the raw noisy position; the long task has no
+noise). ``--breakdown``
 also prints, per pair, where gracenav's time goes (the start: capture regulators,
 catches, shifts and rest trims before the first lattice maneuver that moves; the
 lattice's maneuvers; the end after the last one), its path against the baseline's, and
@@ -38,7 +41,8 @@ to stderr, the tables to stdout.
 
     OPENBLAS_NUM_THREADS=1 nice -n 5 .venv/bin/python bench/bench_speed.py
         [--trials 20] [--seed N] [--only long|pairs] [--lean-limit-deg 5]
-        [--design-push 8] [--no-online-starts] [--no-online-ends] [--breakdown]
+        [--design-push 8] [--no-online-starts] [--no-online-ends]
+        [--no-position-filter] [--breakdown]
 """
 
 from __future__ import annotations
@@ -273,6 +277,7 @@ def bench_pairs(
     lean_limit: float,
     planner: dict[str, Any],
     breakdown: bool = False,
+    simulation: dict[str, Any] | None = None,
 ) -> None:
     from gracenav.campaign import load_campaign
     from gracenav.campaign.runner import trial_result
@@ -283,6 +288,7 @@ def bench_pairs(
         campaign = dataclasses.replace(campaign, seed=seed)
     doc = dict(campaign.scenario)
     doc["planner"] = {**(doc.get("planner") or {}), **planner}
+    doc["simulation"] = {**(doc.get("simulation") or {}), **(simulation or {})}
     campaign = dataclasses.replace(campaign, scenario=doc)
     by_planner: dict[str, list[dict[str, Any]]] = {p: [] for p in PLANNERS}
     phases: list[tuple[dict[str, Any], dict[str, Any], dict[str, Any]]] = []
@@ -360,6 +366,12 @@ def main() -> None:
         "when the task starts)",
     )
     ap.add_argument(
+        "--no-position-filter",
+        action="store_true",
+        help="simulation.position_filter: false on the pairs (both planners act on the raw "
+        "noisy position)",
+    )
+    ap.add_argument(
         "--breakdown",
         action="store_true",
         help="pairs: also where gracenav's time and largest jerk lie, pair by pair",
@@ -379,7 +391,8 @@ def main() -> None:
     if args.only in (None, "long"):
         bench_long(palette, lean, args.seed if args.seed is not None else 0, planner)
     if args.only in (None, "pairs"):
-        bench_pairs(palette, args.trials, args.seed, lean, planner, args.breakdown)
+        simulation = {"position_filter": False} if args.no_position_filter else {}
+        bench_pairs(palette, args.trials, args.seed, lean, planner, args.breakdown, simulation)
 
 
 if __name__ == "__main__":

@@ -12,10 +12,14 @@ from gracenav.campaign.runner import trial_result
 PAIRS = Path(__file__).resolve().parent.parent / "examples" / "campaigns" / "random_pairs.yaml"
 
 
-def pairs_campaign(*, online_starts: bool, online_ends: bool = True) -> Campaign:
-    """The campaign with ``planner.online_starts`` and ``planner.online_ends`` set: the
-    tests of captures, holds and set-aside policies turn online starts off, since a
-    start designed online takes the place of the captures they look at."""
+def pairs_campaign(
+    *, online_starts: bool, online_ends: bool = True, position_filter: bool = True
+) -> Campaign:
+    """The campaign with ``planner.online_starts``, ``planner.online_ends`` and
+    ``simulation.position_filter`` set: the tests of captures, holds and set-aside
+    policies turn online starts off, since a start designed online takes the place of
+    the captures they look at; those of domain exits under sensor noise turn the
+    position filter off."""
     campaign = load_campaign(PAIRS)
     doc = dict(campaign.scenario)
     doc["planner"] = {
@@ -23,12 +27,15 @@ def pairs_campaign(*, online_starts: bool, online_ends: bool = True) -> Campaign
         "online_starts": online_starts,
         "online_ends": online_ends,
     }
+    doc["simulation"] = {**(doc.get("simulation") or {}), "position_filter": position_filter}
     return dataclasses.replace(campaign, scenario=doc)
 
 
 def pairs_trial(
-    index: int, *, online_starts: bool, online_ends: bool = True
+    index: int, *, online_starts: bool, online_ends: bool = True, position_filter: bool = True
 ) -> tuple[dict[str, Any], Any]:
     """gracenav's result row and run of trial ``index`` (:func:`trial_result`)."""
-    campaign = pairs_campaign(online_starts=online_starts, online_ends=online_ends)
+    campaign = pairs_campaign(
+        online_starts=online_starts, online_ends=online_ends, position_filter=position_filter
+    )
     return trial_result(campaign, index, "gracenav")

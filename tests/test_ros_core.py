@@ -151,6 +151,8 @@ def test_rejections_are_logged_once_per_reason_every_two_seconds() -> None:
         ({"state_timeout": 0.5, "stop_timeout": 0.2}, "state_timeout < stop_timeout"),
         ({"cost": "energy"}, "cost must be"),
         ({"footprint_radius": -1.0}, "footprint_radius must be a positive number"),
+        ({"position_noise_std": -0.001}, "position_noise_std must be a standard deviation"),
+        ({"position_noise_std": float("nan")}, "position_noise_std must be a standard deviation"),
     ],
 )
 def test_bad_navigator_options(kwargs: dict[str, object], needle: str) -> None:

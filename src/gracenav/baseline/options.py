@@ -51,6 +51,10 @@ class DecoupledOptions:
     max_retimings : int
         Most passes of the time parameterization lowering the speed cap where the
         smoothed profile exceeds the acceleration limit.
+    position_filter : bool
+        Track from the ball position :class:`gracenav.control.PositionEstimator`
+        estimates, tuned to the simulated sensor's noise (as the hybrid controller's
+        ``ExecutionOptions.position_filter``); False tracks the raw measurement.
     """
 
     safety_margin: float = 0.25
@@ -64,6 +68,7 @@ class DecoupledOptions:
     hold_chunk: float = 0.125
     path_step: float = 0.005
     max_retimings: int = 12
+    position_filter: bool = True
 
     def __post_init__(self) -> None:
         for name in ("smoothing_spacing", "hold_chunk", "path_step", "replan_error"):

@@ -22,7 +22,7 @@ from gracenav.params import BallbotParams
 from gracenav.planning.repair import ReplanEvent
 
 if TYPE_CHECKING:
-    from gracenav.control import ControllerGains
+    from gracenav.control import ControllerGains, PositionEstimator
     from gracenav.execution import Episode
     from gracenav.sim import Disturbance, Reference
     from gracenav.sim.plant import PlantKind
@@ -141,7 +141,14 @@ def track_decoupled(
     )
     robot = sim.plant(plant, plant_params)
     robot.reset(np.asarray(x0, dtype=float))
-    controller.reset(robot.measure(), fall_lean=sim.fall_lean)
+    estimator = None
+    if controller.options.position_filter:
+        from gracenav.control import PositionEstimator
+
+        estimator = PositionEstimator(
+            controller.r, controller.dt, sim.position_noise_std, sim.velocity_noise_std
+        )
+    controller.reset(robot.measure(), fall_lean=sim.fall_lean, estimator=estimator)
     trace = drive(
         controller,
         robot,
@@ -198,8 +205,16 @@ class DecoupledController:
         self.plans: list[DecoupledPlan] = []
         self.log: list[ReplanEvent] = []
 
-    def reset(self, x0: ArrayLike, *, fall_lean: float = math.inf) -> None:
-        """Start from the measured state ``x0`` (8,): plan the first path.
+    def reset(
+        self,
+        x0: ArrayLike,
+        *,
+        fall_lean: float = math.inf,
+        estimator: PositionEstimator | None = None,
+    ) -> None:
+        """Start from the measured state ``x0`` (8,): plan the first path. With an
+        ``estimator``, every measured state is filtered by it first (as the hybrid
+        controller does with ``ExecutionOptions.position_filter``).
 
         Raises
         ------
@@ -209,7 +224,9 @@ class DecoupledController:
         from gracenav.execution import TaskStatus
         from gracenav.sim import position_state
 
-        self.x = np.asarray(x0, dtype=float).copy()
+        self.estimator = estimator
+        x = np.asarray(x0, dtype=float).copy()
+        self.x = estimator.reset(x) if estimator is not None else x
         self.p = position_state(self.x, self.r)
         at_goal = bool(np.linalg.norm(self.p[:2] - self.goal_xy) <= self.goal_tolerance)
         self.plans = []
@@ -289,6 +306,8 @@ class DecoupledController:
         xs = np.asarray(x, dtype=float)
         if self.final is not None:
             return self.final
+        if self.estimator is not None:
+            xs = self.estimator.update(xs)
         self.x, self.held = xs, held
         while self.status is TaskStatus.RUNNING:
             if self.segment is None:

@@ -30,7 +30,7 @@ from concurrent.futures import Executor, ThreadPoolExecutor
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from gracenav.control import CONTROL_RATE, TrackingLaw
+from gracenav.control import CONTROL_RATE, PositionEstimator, TrackingLaw
 from gracenav.errors import ConfigError, PlanningError
 from gracenav.execution.arrival import ArrivalPlan, arrival_plan, way_time
 from gracenav.execution.capture import CapturePlan, Terminal, TerminalPolicy, capture_for
@@ -118,6 +118,7 @@ class HybridController:
         self.radius = float(self.gains.params.ball_radius)
         self.law = TrackingLaw(self.gains)
         self._task: Supervisor | None = None
+        self._estimator: PositionEstimator | None = None
         self._executor: ThreadPoolExecutor | None = None
 
     @property
@@ -477,6 +478,16 @@ class HybridController:
         if x.shape != (8,) or not np.all(np.isfinite(x)):
             raise ConfigError(f"a start state is a finite array of shape (8,), got {x0!r}")
         self._task = None
+        self._estimator = None
+        if options.position_filter:
+            sensor = options.simulation
+            self._estimator = PositionEstimator(
+                self.radius,
+                self.dt,
+                sensor.position_noise_std,
+                sensor.velocity_noise_std,
+            )
+            x = self._estimator.reset(x)
         goal_ids = [self.goal_policy(g) for g in goals]
         terminals: list[Terminal | None] = [
             self._terminal(g, i) for g, i in zip(goals, goal_ids, strict=True)
@@ -603,7 +614,8 @@ class HybridController:
             Call once a tick, at :attr:`control_rate`; a tick the caller missed (``t``
             ahead by more than half a period) moves the reference on as well.
         x : array_like, shape (8,)
-            Measured state.
+            Measured state (its ball position filtered first when
+            ``ExecutionOptions.position_filter``: :class:`~gracenav.control.PositionEstimator`).
         held : bool
             An external force known to act on the robot (a hand holding it): balancing
             mode does not hand back to a policy while it acts.
@@ -620,7 +632,10 @@ class HybridController:
         """
         if self._task is None:
             raise ConfigError("HybridController.step before reset(): start a task first")
-        return self._task.tick(float(t), np.asarray(x, dtype=float), held)
+        y = np.asarray(x, dtype=float)
+        if self._estimator is not None:
+            y = self._estimator.update(y)
+        return self._task.tick(float(t), y, held)
 
     def log(self) -> ExecutionLog:
         """What the task has kept so far besides the samples: switch events, goals

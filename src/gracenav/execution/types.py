@@ -197,6 +197,11 @@ class ExecutionOptions:
         maneuvers planned and verified on the 3D model for each way to start when the
         task starts, median 0.57 s and at most 1.5 s each on the random pairs,
         ``bench/bench_starts.py``).
+    position_filter : bool
+        Act on the ball position a steady-state Kalman filter estimates from the
+        measured position and ball rates, tuned to the sensor noise ``simulation``
+        states (:class:`gracenav.control.PositionEstimator`; with no position noise
+        the measurement passes through unchanged). False acts on the raw measurement.
     """
 
     plant: PlantKind = "model3d"
@@ -215,6 +220,7 @@ class ExecutionOptions:
     set_aside_exits: int = 2
     online_starts: bool = True
     online_ends: bool = True
+    position_filter: bool = True
 
     def __post_init__(self) -> None:
         if self.plant not in PLANT_KINDS:

@@ -73,6 +73,11 @@ class NavigatorOptions:
         torque, task dropped.
     log_stride : int
         Control ticks per sample of the MCAP recording.
+    position_noise_std : float
+        Standard deviation (m) of the white noise on the odometry's ball position:
+        the controller acts on the position a steady-state Kalman filter estimates from
+        it and the odometry's velocity (:class:`gracenav.control.PositionEstimator`);
+        0 (the default) acts on the position as received.
     """
 
     footprint_radius: float = 0.2
@@ -83,8 +88,14 @@ class NavigatorOptions:
     state_timeout: float = 0.1
     stop_timeout: float = 0.5
     log_stride: int = 8
+    position_noise_std: float = 0.0
 
     def __post_init__(self) -> None:
+        v = self.position_noise_std
+        if not (isinstance(v, int | float) and np.isfinite(v) and 0 <= v <= 1):
+            raise ConfigError(
+                f"position_noise_std must be a standard deviation within [0, 1] m, got {v!r}"
+            )
         for name in ("footprint_radius", "max_time", "goal_tolerance"):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and np.isfinite(v) and v > 0):
@@ -280,6 +291,7 @@ class NavigatorCore:
 
     def _plan(self, goals: list[FloatArray], loops: int, x0: FloatArray) -> None:
         from gracenav.execution import ExecutionOptions, HybridController
+        from gracenav.sim import SimulationOptions
 
         t0 = time.perf_counter()
         hc = HybridController(self.library, self.graph, criterion=self.options.cost)
@@ -287,6 +299,8 @@ class NavigatorCore:
             max_time=self.options.max_time,
             goal_tolerance=self.options.goal_tolerance,
             planning="threaded",
+            # The sensor's noise, which the position filter is tuned to.
+            simulation=SimulationOptions(position_noise_std=self.options.position_noise_std),
         )
         try:
             hc.reset(x0, goals, loops=loops, options=opts)

@@ -55,6 +55,7 @@ PARAMETERS: dict[str, Any] = {
     "state_timeout": 0.1,
     "stop_timeout": 0.5,
     "sync_tolerance": 0.5e-3,
+    "position_noise_std": 0.0,
     "log_file": "",
     "exit_when_done": False,
 }
@@ -109,6 +110,7 @@ class _Navigator:
             goal_tolerance=float(par["goal_tolerance"]),
             state_timeout=float(par["state_timeout"]),
             stop_timeout=float(par["stop_timeout"]),
+            position_noise_std=float(par["position_noise_std"]),
         )
         self.sync = float(par["sync_tolerance"])
         self.exit_when_done = bool(par["exit_when_done"])

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -69,6 +70,8 @@ def run_decoupled(
     world_map = load_scenario_map(scenario)
     check_scenario(scenario, world_map, palette)
     options = options if options is not None else DecoupledOptions()
+    if not scenario.position_filter:
+        options = dataclasses.replace(options, position_filter=False)
     limits = motion_limits(palette, options)
     sim = SimulationOptions(position_noise_std=scenario.position_noise_std, seed=scenario.seed)
     tolerance = ExecutionOptions().goal_tolerance

@@ -309,6 +309,7 @@ def _execution_options(scenario: Scenario) -> Any:
         sensing=ObstacleSensing(range=scenario.sensing_range),
         online_starts=scenario.online_starts,
         online_ends=scenario.online_ends,
+        position_filter=scenario.position_filter,
     )
 
 

@@ -76,6 +76,11 @@ class Scenario:
     max_time : float
         (s)
     source : str
+    position_filter : bool
+        ``simulation.position_filter``: both planners act on the ball position a
+        steady-state Kalman filter estimates, tuned to ``position_noise_std``
+        (:class:`gracenav.control.PositionEstimator`; with no noise the measurement
+        passes through unchanged); default true.
     plant_factors : tuple of (str, float)
         Factors (dimensionless) of the simulated plant's parameters, by
         :class:`~gracenav.params.BallbotParams` field name, in file order; empty: the
@@ -149,6 +154,7 @@ class Scenario:
     position_noise_std: float
     max_time: float
     source: str = "scenario"
+    position_filter: bool = True
     plant_factors: tuple[tuple[str, float], ...] = ()
     planner: Literal["gracenav", "decoupled"] = "gracenav"
     resume_from_balancing: bool = True
@@ -343,11 +349,14 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
             "region must hold the robot and its catches around the path"
         )
     sim = top.sub("simulation", {})
-    sim.check_keys({"plant", "seed", "position_noise_std", "max_time", "plant_params"})
+    sim.check_keys(
+        {"plant", "seed", "position_noise_std", "position_filter", "max_time", "plant_params"}
+    )
     plant = sim.choice("plant", PLANT_KINDS, "model3d")
     plant_factors = _plant_factors(sim)
     noise = sim.number("position_noise_std", 0.0, minimum=0.0, maximum=MAX_NOISE_STD_M, unit="m")
     seed = sim.integer("seed", 0, maximum=2**32 - 1)
+    position_filter = sim.boolean("position_filter", True)
     max_time = sim.number("max_time", 120.0, positive=True, unit="s")
     task = top.sub("task")
     kind = task.choice("kind", ("point_to_point", "surveillance"))
@@ -425,6 +434,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         plant=plant,  # type: ignore[arg-type]
         seed=seed,
         position_noise_std=noise,
+        position_filter=position_filter,
         max_time=max_time,
         source=source,
         plant_factors=plant_factors,
