@@ -168,7 +168,10 @@ def _bin_table(summary: dict[str, Any]) -> list[str]:
 def plot_results(
     rows: list[dict[str, Any]], summary: dict[str, Any], directory: Path
 ) -> list[Path]:
-    """Write success_vs_impulse.png (if pushed), time_to_goal.png and lean.png."""
+    """Write success_vs_impulse.png (if pushed), time_to_goal.png and lean.png (the
+    planners' histograms on the same bins)."""
+    import numpy as np
+
     from gracenav.plotting._figure import agg_figure
 
     written = []
@@ -198,16 +201,23 @@ def plot_results(
     ):
         fig = agg_figure(figsize=(5, 3.5))
         ax = fig.subplots()
-        for planner in planners:
-            vals = [
+        by_planner = {
+            planner: [
                 r[key]
                 for r in rows
                 if r["planner"] == planner
                 and r.get(key) is not None
                 and (key != "time_s" or r["reached_goal"])
             ]
-            if vals:
-                ax.hist(vals, bins=20, alpha=0.6, label=planner)
+            for planner in planners
+        }
+        every = [v for vals in by_planner.values() for v in vals]
+        if every:
+            # One set of bins for every planner, so their counts compare bar by bar.
+            edges = np.histogram_bin_edges(every, bins=20).tolist()
+            for planner, vals in by_planner.items():
+                if vals:
+                    ax.hist(vals, bins=edges, alpha=0.5, label=planner)
         ax.set_xlabel(label)
         ax.set_ylabel("trials")
         ax.legend()
