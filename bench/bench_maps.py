@@ -24,10 +24,12 @@ median time to goal and the median wall time per task.
 
     OPENBLAS_NUM_THREADS=1 python bench/bench_maps.py [--tasks 8] [--seed 0]
         [--classes forest forest_tight warehouse office] [--max-halvings N]
-        [--design-push 8] [--no-online-starts] [--no-online-ends]
+        [--design-push 8] [--no-online-starts] [--no-online-ends] [--per-task]
 
-``--no-online-starts`` sets ``planner.online_starts: false`` of every task (no start at
-rest through one maneuver designed at the start; the decoupled baseline ignores it), and
+``--per-task`` also prints every task's time to goal and wall time for both planners
+(to compare two versions task by task). ``--no-online-starts`` sets
+``planner.online_starts: false`` of every task (no start at rest through one maneuver
+designed at the start; the decoupled baseline ignores it), and
 ``--no-online-ends`` ``planner.online_ends: false`` (no end through one maneuver
 designed when the task starts).
 ``--design-push J`` sets ``planner.design_push`` (N s; default the scenario default,
@@ -154,6 +156,17 @@ def run_one(
     }
 
 
+def _cell(row: dict[str, Any]) -> str:
+    """A task's outcome for ``--per-task``: time to goal (or why not) and wall time."""
+    if "refused" in row:
+        what = f"refused ({row['refused']})"
+    elif row.get("reached"):
+        what = f"{row['time']:.3f} s" + (" (contact)" if row.get("contact") else "")
+    else:
+        what = "not reached"
+    return f"{what}, wall {row['wall']:.1f} s"
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--tasks", type=int, default=8)
@@ -187,6 +200,11 @@ def main() -> None:
         action="store_true",
         help="planner.online_ends: false in every task (no end through one maneuver "
         "designed and verified when the task starts)",
+    )
+    ap.add_argument(
+        "--per-task",
+        action="store_true",
+        help="also print every task's time to goal and wall time, both planners",
     )
     args = ap.parse_args()
     print("class      planner     tasks  reached  refused  contacts  median_time_s  median_wall_s")
@@ -224,6 +242,9 @@ def main() -> None:
                     f"{sum(refused.values()):8d} {contacts:9d} {med:>14s} {wall:14.1f}"
                 )
             g_rows, d_rows = by_planner["gracenav"], by_planner["decoupled"]
+            if args.per_task:
+                for i, (g, d) in enumerate(zip(g_rows, d_rows, strict=True)):
+                    print(f"{kind:10s} task {i}: gracenav {_cell(g)}, decoupled {_cell(d)}")
             g_t = [r["time"] for r in g_rows if r.get("reached")]
             d_t = [r["time"] for r in d_rows if r.get("reached")]
             both = [

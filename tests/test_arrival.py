@@ -113,3 +113,32 @@ def test_an_end_off_the_lattice_hands_over_to_the_regulator_at_the_goal() -> Non
         seed=16,
         placements=(0,),
     )
+
+
+@pytest.mark.slow
+def test_an_end_on_a_lazy_tree(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Where the graph keeps no reversed graph (building-scale maps) the trees are lazy,
+    read only as far as asked: trial 19 forced onto a lazy tree (by lowering
+    :data:`gracenav.planning.graph.STORED_EDGES`) takes an end maneuver too, and
+    arrives as the whole tree's run does."""
+    import gracenav.execution.controller as controller_module
+    import gracenav.planning.graph as graph_module
+    from gracenav.planning import LazyPolicyTree
+
+    whole, res = pairs_trial(19, online_starts=True)
+    made: list[LazyPolicyTree] = []
+
+    class Recorded(LazyPolicyTree):
+        def __init__(self, *args, **kwargs) -> None:  # type: ignore[no-untyped-def]
+            super().__init__(*args, **kwargs)
+            made.append(self)
+
+    monkeypatch.setattr(graph_module, "STORED_EDGES", 0)
+    monkeypatch.setattr(controller_module, "LazyPolicyTree", Recorded)
+    lazy, res_lazy = pairs_trial(19, online_starts=True)
+    assert made and all(t.expanded < len(res_lazy.library) for t in made)
+    a, b = res.episodes[0].arrival, res_lazy.episodes[0].arrival
+    assert a is not None and b is not None
+    assert (b.after, b.saving) == (a.after, a.saving)
+    assert lazy["reached_goal"] and lazy["balancing_s"] == 0.0
+    assert lazy["time_s"] == pytest.approx(whole["time_s"], abs=1e-9)

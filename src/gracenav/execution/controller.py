@@ -534,11 +534,11 @@ class HybridController:
                 cand, tree, current, plan = other
                 goal_ids, terminals = [cand.approach], [cand]
         # The ways to start: as found, or through a maneuver designed at the start onto
-        # a cruise trim, or onto any policy from a cruise state. On a whole tree each is
-        # priced as it runs (its way from the first library policy by the durations
-        # that run, not as the tree prices it: fine copies at twice their duration,
-        # holds in full), less what an end designed online saves on it; the cheapest
-        # is taken.
+        # a cruise trim, or onto any policy from a cruise state. Each is priced as it runs
+        # (its way from the first library policy, a lazy tree read along it, by the
+        # durations that run, not as the tree prices it: fine copies at twice their
+        # duration, holds in full), less what an end designed online saves on it; the
+        # cheapest is taken.
         price = None
         if options.online_starts and dyn is None and len(goals) == 1:
             # Priced against whatever the start takes otherwise, that other end included
@@ -554,7 +554,7 @@ class HybridController:
                     starts.append((launched.cost, launched, CAPTURE))
         ends = options.online_ends and dyn is None and len(goals) == 1 and loops == 1
         arrival = None
-        if isinstance(tree, PolicyTree) and (ends or len(starts) > 1):
+        if ends or len(starts) > 1:
             best = math.inf
             for cost, way_plan, way_current in starts:
                 first = way_plan.rest_row if way_current == CAPTURE and way_plan else way_current

@@ -183,8 +183,8 @@ class ExecutionOptions:
     online_starts : bool
         At a start at rest that a capture or a capture regulator would take onto the
         lattice, design and verify one maneuver from the start onto a library policy
-        ahead that starts at a cruise state and take it where it is priced lower (on a
-        whole tree, by what each way runs, less what ``online_ends`` saves on it)
+        ahead that starts at a cruise state and take it where it is priced lower (by
+        what each way runs, less what ``online_ends`` saves on it)
         (:mod:`gracenav.execution.launch`; a gracenav extension: such a start plans and
         verifies up to four maneuvers on the 3D model, twice (onto cruise trims, and
         onto any policy from a cruise state), each up to about 5 s of wall time, median
