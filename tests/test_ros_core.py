@@ -111,6 +111,32 @@ def test_without_a_map_the_robot_balances_in_place_and_a_goal_waits() -> None:
     assert np.hypot(*x[2:4]) < 0.01 and np.hypot(*p[2:]) < 0.05
 
 
+def test_a_noisy_odometry_is_filtered_before_the_balancing_law() -> None:
+    """5 mm of noise on the odometry's position: told so (``position_noise_std``), the
+    node balances in place on the filtered position, with a fraction of the torque's
+    chatter; the position it keeps is the same to within the noise."""
+    from gracenav.palette import load_palette
+    from gracenav.sim import Model3DPlant, state_from_position
+
+    palette = load_palette()
+    chatter, held = {}, {}
+    for told in (0.0, 0.005):
+        opts = NavigatorOptions(state_timeout=0.1, stop_timeout=0.3, position_noise_std=told)
+        core = NavigatorCore(palette, opts, log=lambda lvl, msg: None)
+        plant = Model3DPlant(palette.params, position_noise_std=0.005, seed=7)
+        plant.reset(state_from_position([0.5, -0.2, 0.0, 0.0], core.radius))
+        torques = []
+        for k in range(1024):  # 1 s
+            tick = core.control(k * core.dt, plant.measure(), wall=0.0)
+            plant.advance(tick.torque, core.dt)
+            torques.append(tick.torque)
+        chatter[told] = float(np.mean(np.abs(np.diff(np.array(torques), axis=0))))
+        held[told] = convert.odometry_from_state(plant.state(), core.radius)[:2]
+    assert chatter[0.005] < 0.2 * chatter[0.0]
+    np.testing.assert_allclose(held[0.005], [0.5, -0.2], atol=0.02)
+    np.testing.assert_allclose(held[0.0], [0.5, -0.2], atol=0.02)
+
+
 def test_silence_holds_then_stops_and_readings_bring_balancing_back() -> None:
     lines: list[tuple[str, str]] = []
     core = _core(lines)

@@ -75,9 +75,10 @@ class NavigatorOptions:
         Control ticks per sample of the MCAP recording.
     position_noise_std : float
         Standard deviation (m) of the white noise on the odometry's ball position:
-        the controller acts on the position a steady-state Kalman filter estimates from
-        it and the odometry's velocity (:class:`gracenav.control.PositionEstimator`);
-        0 (the default) acts on the position as received.
+        every tick (balancing in place and in a task) acts on the position a
+        steady-state Kalman filter estimates from it and the odometry's velocity
+        (:class:`gracenav.control.PositionEstimator`, started again after a gap in the
+        readings); 0 (the default) acts on the position as received.
     """
 
     footprint_radius: float = 0.2
@@ -163,7 +164,7 @@ class NavigatorCore:
         log: Logger,
         recorder: Any = None,
     ) -> None:
-        from gracenav.control import CONTROL_RATE, TrackingLaw
+        from gracenav.control import CONTROL_RATE, PositionEstimator, TrackingLaw
 
         self.palette = palette
         self.options = options
@@ -172,6 +173,12 @@ class NavigatorCore:
         self.radius = float(palette.params.ball_radius)
         self.dt = 1.0 / CONTROL_RATE
         self.law = TrackingLaw(palette.gains)
+        # Every tick's state, balancing in place and in a task alike, is filtered here
+        # once (the controller of a task is given it as it is: its own filter is off).
+        self._estimator = PositionEstimator(
+            self.radius, self.dt, position_std=options.position_noise_std
+        )
+        self._estimated = False
         self._lock = threading.Lock()
         self.phase = Phase.WAITING_FOR_MAP
         self.world_map: Any = None
@@ -291,7 +298,6 @@ class NavigatorCore:
 
     def _plan(self, goals: list[FloatArray], loops: int, x0: FloatArray) -> None:
         from gracenav.execution import ExecutionOptions, HybridController
-        from gracenav.sim import SimulationOptions
 
         t0 = time.perf_counter()
         hc = HybridController(self.library, self.graph, criterion=self.options.cost)
@@ -299,8 +305,7 @@ class NavigatorCore:
             max_time=self.options.max_time,
             goal_tolerance=self.options.goal_tolerance,
             planning="threaded",
-            # The sensor's noise, which the position filter is tuned to.
-            simulation=SimulationOptions(position_noise_std=self.options.position_noise_std),
+            position_filter=False,  # control() filters every tick's state
         )
         try:
             hc.reset(x0, goals, loops=loops, options=opts)
@@ -340,13 +345,19 @@ class NavigatorCore:
         is not waited for."""
         wall = time.monotonic() if wall is None else wall
         xs = np.asarray(x, dtype=float)
+        if self.staleness != "ok":
+            self.log("info", "state readings are back: balancing in place")
+            self.staleness = "ok"
+            self._estimated = False  # after a gap the estimate starts again
+        if self._estimated:
+            xs = self._estimator.update(xs)
+        else:
+            xs = self._estimator.reset(xs)
+            self._estimated = True
         self.x_last = xs.copy()
         self.last_valid_wall = wall
         if self.first_tick_wall is None:
             self.first_tick_wall = wall
-        if self.staleness != "ok":
-            self.log("info", "state readings are back: balancing in place")
-            self.staleness = "ok"
         switched = False
         finished = None
         pending = None
