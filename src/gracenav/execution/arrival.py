@@ -107,6 +107,7 @@ def arrival_plan(
     way: Sequence[int],
     *,
     hold: PlacedPolicy | None = None,
+    lead: float = 0.0,
     skip_holds: bool = True,
     options: ArrivalOptions | None = None,
 ) -> ArrivalPlan | None:
@@ -117,8 +118,9 @@ def arrival_plan(
     whose start is the goal; or, for a goal off the lattice, the rest trim its terminal
     takes over from: the maneuver then ends at the start of ``hold``, the capture
     regulator placed at the goal (the terminal itself, or the hold after a terminal's
-    shifts), and is followed by it (its S must hold the maneuver's G).
-    ``skip_holds`` prices the way as it runs with
+    shifts), and is followed by it (its S must hold the maneuver's G). ``lead`` is
+    what the way runs between its last rest trim and ``hold`` (s): the terminal's shifts,
+    which the maneuver saves too. ``skip_holds`` prices the way as it runs with
     :attr:`~gracenav.execution.ExecutionOptions.skip_holds` (rest trims on the way
     skipped). The last few plans of each library are remembered (a task that is checked
     first and then run designs its end once).
@@ -127,13 +129,13 @@ def arrival_plan(
     rows = np.asarray(way, dtype=np.int64)
     at = b"" if hold is None else np.asarray(hold.start_xy, dtype=float).tobytes()
     key = hashlib.sha1(
-        rows.tobytes() + at + repr((hold is None or hold.name, skip_holds, opts)).encode()
+        rows.tobytes() + at + repr((hold is None or hold.name, lead, skip_holds, opts)).encode()
     ).digest()
     known = _MADE.setdefault(library, {})
     if key not in known:
         if len(known) >= _KEEP:
             del known[next(iter(known))]
-        known[key] = _arrival_plan(library, rows, hold, skip_holds, opts)
+        known[key] = _arrival_plan(library, rows, hold, lead, skip_holds, opts)
     return known[key]
 
 
@@ -163,6 +165,7 @@ def _arrival_plan(
     library: PolicyLibrary,
     way: NDArray[np.int64],
     hold: PlacedPolicy | None,
+    lead: float,
     skip_holds: bool,
     opts: ArrivalOptions,
 ) -> ArrivalPlan | None:
@@ -178,9 +181,10 @@ def _arrival_plan(
     else:
         goal, then_start, then = hold.start_xy, hold.start_domain, TERMINAL
     zero = np.zeros(2)
-    # What the way runs after each of its policies, up to the goal's rest trim.
+    # What the way runs after each of its policies, up to the goal's rest trim (and
+    # from there to the hold: a terminal's shifts).
     runs = _run_times(library, way, skip_holds)
-    after = np.concatenate([np.cumsum(runs[::-1])[::-1][1:], [0.0]])
+    after = np.concatenate([np.cumsum(runs[::-1])[::-1][1:], [0.0]]) + lead
     picks: list[tuple[float, int, float, float]] = []
     for k, row in enumerate(way[:-1].tolist()):
         end = library.end_state[row]

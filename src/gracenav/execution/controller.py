@@ -33,7 +33,13 @@ from numpy.typing import ArrayLike, NDArray
 from gracenav.control import CONTROL_RATE, PositionEstimator, TrackingLaw
 from gracenav.errors import ConfigError, PlanningError
 from gracenav.execution.arrival import ArrivalPlan, arrival_plan, way_time
-from gracenav.execution.capture import CapturePlan, Terminal, TerminalPolicy, capture_for
+from gracenav.execution.capture import (
+    CapturePlan,
+    PlacedPolicy,
+    Terminal,
+    TerminalPolicy,
+    capture_for,
+)
 from gracenav.execution.episode import Episode, ExecutionLog, drive
 from gracenav.execution.goals import ON_LATTICE, Goals
 from gracenav.execution.launch import LaunchOptions, launch_plan
@@ -401,11 +407,22 @@ class HybridController:
             return arrival_plan(self.library, way, skip_holds=skip_holds)
         if terminal.approach != way[-1]:
             return None
-        # The capture regulator at the goal: the terminal, or the hold after its shifts.
-        hold = terminal if isinstance(terminal, TerminalPolicy) else terminal.hold
+        # The capture regulator at the goal: the terminal, or the hold after its shifts
+        # (which the maneuver saves: all but the last one's rest tail, which the hold
+        # takes over with skip_holds).
+        lead = 0.0
+        hold: PlacedPolicy
+        if isinstance(terminal, TerminalPolicy):
+            hold = terminal
+        else:
+            hold = terminal.hold
+            lead = sum(s.duration for s in terminal.shifts)
+            catch = self.library.palette.options.catch
+            if skip_holds and catch is not None:
+                lead -= catch.tail
         if not hold.policy.capture or np.linalg.norm(hold.start_xy - g[:2]) > ON_LATTICE:
             return None
-        return arrival_plan(self.library, way, hold=hold, skip_holds=skip_holds)
+        return arrival_plan(self.library, way, hold=hold, lead=lead, skip_holds=skip_holds)
 
     def best_policy(self, p: ArrayLike, tree: PolicyTree | LazyPolicyTree) -> int:
         """The policy with the lowest cost-to-go whose S contains ``p`` (−1 if none).
