@@ -74,6 +74,27 @@ def smooth_motion(n: int) -> tuple[np.ndarray, np.ndarray]:
     return angle, rate
 
 
+def filtered_errors(
+    est: PositionEstimator,
+    angle: np.ndarray,
+    rate: np.ndarray,
+    sigma: float,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """The estimate's error (rad, shape (n, 2)) of the true ball angles ``angle`` from
+    measurements with ``sigma`` (m) of white noise on the position and exact rates;
+    the rates must pass through unchanged."""
+    errors = np.empty_like(angle)
+    for k in range(len(angle)):
+        x = np.zeros(8)
+        x[0:2] = angle[k] + rng.standard_normal(2) * sigma / R
+        x[4:6] = rate[k]
+        y = est.reset(x) if k == 0 else est.update(x)
+        errors[k] = y[0:2] - angle[k]
+        assert np.array_equal(y[4:6], rate[k])
+    return errors
+
+
 def test_error_with_exact_rates_matches_the_closed_form() -> None:
     """With exact rates the error obeys e' = (1 − K) e + K v (plus the trapezoid's
     O(Δt³) error), whose steady standard deviation is σ √(K / (2 − K)); its mean stays
@@ -82,15 +103,7 @@ def test_error_with_exact_rates_matches_the_closed_form() -> None:
     angle, rate = smooth_motion(n)
     rng = np.random.default_rng(11)
     est = PositionEstimator(R, DT, position_std=sigma)
-    errors = np.empty((n, 2))
-    for k in range(n):
-        x = np.zeros(8)
-        x[0:2] = angle[k] + rng.standard_normal(2) * sigma / R
-        x[4:6] = rate[k]
-        y = est.reset(x) if k == 0 else est.update(x)
-        errors[k] = (y[0:2] - angle[k]) * R
-        assert np.array_equal(y[4:6], rate[k])  # the rates pass through
-    tail = errors[2000:]
+    tail = filtered_errors(est, angle, rate, sigma, rng)[2000:] * R
     k = est.gain
     expected = sigma * math.sqrt(k / (2.0 - k))
     assert np.std(tail, axis=0) == pytest.approx([expected, expected], rel=0.05)
@@ -113,13 +126,7 @@ def test_error_matches_the_posterior_when_the_model_holds() -> None:
     for k in range(1, n):
         step = 0.5 * DT * (rate[k - 1] + rate[k])
         angle[k] = angle[k - 1] + step + rng.standard_normal(2) * math.sqrt(q)
-    errors = np.empty((n, 2))
-    for k in range(n):
-        x = np.zeros(8)
-        x[0:2] = angle[k] + rng.standard_normal(2) * sigma / R
-        x[4:6] = rate[k]
-        y = est.reset(x) if k == 0 else est.update(x)
-        errors[k] = y[0:2] - angle[k]
+    errors = filtered_errors(est, angle, rate, sigma, rng)
     assert np.std(errors[2000:], axis=0) == pytest.approx([est.error_std, est.error_std], rel=0.05)
 
 
