@@ -245,15 +245,27 @@ def test_a_start_near_walls_launched_online_clears_them() -> None:
 def test_a_start_on_another_sub_lattice_ends_through_another_rest_trim() -> None:
     """In the 1 m passage between the table and the south wall the rest trims cannot
     reach the goal's own rest trim (another sub-lattice; no capture regulator fits
-    there to join them): the task ends on a rest trim they reach and a terminal."""
-    scenario = parse_scenario(
-        _task(_inline(CLUTTERED), (3.0, 2.25), (1.5, 0.5)), source="cluttered.yaml"
-    )
-    result = run_scenario(scenario)
-    run, ep = result.runs[0], result.episodes[0]
-    assert run.reached_goal and not run.contact and run.min_clearance_m >= 0.0
-    assert run.final_error_m is not None and run.final_error_m <= _GRID_HALF_DIAGONAL + 0.005
+    there to join them): the task ends on a rest trim they reach and a terminal. With
+    online ends, one maneuver from the policy before that rest trim runs straight to
+    the terminal's hold at the goal instead, sooner."""
+    runs = {}
+    for ends in (False, True):
+        doc = _task(_inline(CLUTTERED), (3.0, 2.25), (1.5, 0.5))
+        doc["planner"]["online_ends"] = ends
+        result = run_scenario(parse_scenario(doc, source="cluttered.yaml"))
+        run, ep = result.runs[0], result.episodes[0]
+        assert run.reached_goal and not run.contact and run.min_clearance_m >= 0.0
+        assert run.final_error_m is not None
+        assert run.final_error_m <= _GRID_HALF_DIAGONAL + 0.005
+        runs[ends] = (run, ep)
+    run, ep = runs[False]
+    assert ep.arrival is None
     assert any(e.reason is EventReason.TERMINAL for e in ep.events)
+    run_ends, ep_ends = runs[True]
+    assert ep_ends.arrival is not None and ep_ends.arrival.plan.rest_row == TERMINAL
+    assert ep_ends.events[-1].reason is EventReason.HOLD_GOAL
+    assert ep_ends.events[-1].to_policy == TERMINAL
+    assert run_ends.time_s <= run.time_s - 1.0
 
 
 def test_a_start_where_the_library_has_no_way_out_is_refused_with_the_reason() -> None:
