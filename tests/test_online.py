@@ -50,3 +50,38 @@ def test_the_kinematic_bound_is_a_lower_bound_on_an_end(palette) -> None:
     moving = np.array([[0.5, 0.0], [DIAGONAL, DIAGONAL], [0.0, 0.0]])
     ends = [(0.5, 0.0), (0.9, 0.45), (1.2, -0.5), (0.3, 0.3), (0.01, 0.0)]
     assert _bound_holds(palette, moving, ends, to_rest=True) >= 8
+
+
+def test_a_limited_palette_bounds_the_ball_jerk_of_what_is_designed_online(palette) -> None:
+    """On a palette of limited references the nonics designed online keep the ball's jerk
+    within the palette's bound, as its maneuvers do: the launch from rest onto the cruise
+    along x over 1 m (the default palette's is the shortest feasible nonic, whose ball jerk
+    exceeds 2 m/s³) lasts longer, the shortest nonic within the bound, and the kinematic bound
+    (``shortest``) still holds; on the default (nonic) palette no jerk bound applies."""
+    import dataclasses
+
+    from gracenav.policies.catches import ball_jerk
+    from gracenav.primitives.references import NonicReference
+
+    def jerk(duration: float) -> float:
+        ref = NonicReference.between(duration, ZERO, ZERO, end, velocity)
+        return ball_jerk(ref, palette.params)
+
+    bound = 2.0
+    end, velocity = np.array([1.0, 0.0]), np.array([0.5, 0.0])
+    options = dataclasses.replace(
+        palette.primitive_options, reference="limited", max_ball_jerk=bound
+    )
+    limited = dataclasses.replace(palette, primitive_options=options)
+    fast = design(ZERO, end, ZERO, velocity, palette, 0.0, name="online")
+    smooth = design(ZERO, end, ZERO, velocity, limited, 0.0, name="online")
+    assert fast is not None and smooth is not None
+    assert jerk(fast.duration) > bound
+    assert smooth.duration > fast.duration
+    assert (
+        jerk(smooth.duration)
+        <= bound
+        < jerk(smooth.duration - palette.primitive_options.duration_step)
+    )
+    assert shortest(ZERO, end, ZERO, velocity, limited) <= smooth.duration
+    assert shortest(ZERO, end, ZERO, velocity, palette) <= fast.duration

@@ -4,7 +4,8 @@ the goal (:mod:`gracenav.execution.arrival`).
 
 Each is made as the palette's maneuvers are made (:mod:`gracenav.primitives.design`): the
 nonic between two position states, the shortest on the palette's duration grid that
-keeps within its speed, does not run backwards along the way it moves, and that the
+keeps within its speed, does not run backwards along the way it moves, keeps the ball's
+jerk within the palette's bound when its maneuvers are limited references, and that the
 shape trajectory planner makes feasible on the 3D model within the palette's lean and
 torque limits; planned in the one frame it runs in.
 """
@@ -20,6 +21,7 @@ from numpy.typing import NDArray
 
 from gracenav.execution.capture import PlacedPolicy, capture_for
 from gracenav.policies import MotionPolicy, domain_shape, size_policy
+from gracenav.policies.catches import ball_jerk
 from gracenav.policies.primitive import SampledPrimitive
 from gracenav.primitives.design import passes_screen
 from gracenav.primitives.motion import Maneuver, PrimitiveReport, PrimitiveSetOptions
@@ -29,6 +31,7 @@ from gracenav.primitives.shape_planner import plan_shape_trajectory
 if TYPE_CHECKING:
     from gracenav.library import PolicyLibrary
     from gracenav.palette import Palette
+    from gracenav.params import BallbotParams
     from gracenav.policies.domains import EllipsoidalDomain
 
 __all__ = ["admissible", "design", "shortest", "size_where_it_runs"]
@@ -49,12 +52,17 @@ def admissible(
     v1: FloatArray,
     options: PrimitiveSetOptions,
     shortest: float,
+    params: BallbotParams,
 ) -> Iterator[tuple[float, NonicReference]]:
     """The nonics from the origin at velocity ``v0`` to displacement ``disp`` at velocity
     ``v1`` on the duration grid from ``shortest`` (s, at least :data:`_SHORTEST`) on,
-    shortest first, that keep within ``options``' speed and do not run backwards
+    shortest first, that keep within ``options``' speed, do not run backwards
     (beyond ``options.max_backward_speed``) against the moving end's direction of travel (the
-    end's, when both move; the displacement's, from rest to rest)."""
+    end's, when both move; the displacement's, from rest to rest) and, when the palette's
+    maneuvers are limited references, keep the ball's jerk (of ``params``' linearised
+    model, :func:`gracenav.policies.catches.ball_jerk`) within ``options.max_ball_jerk``,
+    as those do."""
+    jerk_bound = options.max_ball_jerk if options.reference == "limited" else math.inf
     along = v1 if float(np.hypot(*v1)) > _MOVING else v0 if float(np.hypot(*v0)) > _MOVING else disp
     u = along / float(np.hypot(*along))
     step = options.duration_step
@@ -67,6 +75,8 @@ def admissible(
         if np.max(np.hypot(vel[:, 0], vel[:, 1])) > options.max_speed * (1 + 1e-9):
             continue
         if np.min(vel @ u) < -options.max_backward_speed:
+            continue
+        if jerk_bound < math.inf and ball_jerk(ref, params) > jerk_bound:
             continue
         yield duration, ref
 
@@ -83,7 +93,7 @@ def shortest(
     :func:`design`'s, from kinematics alone."""
     disp = np.asarray(end, dtype=float) - start
     u0, u1 = np.asarray(v0, dtype=float), np.asarray(v1, dtype=float)
-    for duration, _ in admissible(disp, u0, u1, palette.primitive_options, 0.0):
+    for duration, _ in admissible(disp, u0, u1, palette.primitive_options, 0.0, palette.params):
         return duration
     return math.inf
 
@@ -105,7 +115,7 @@ def design(
     params = palette.params
     disp = np.asarray(end, dtype=float) - start
     v0, v1 = (np.asarray(v, dtype=float) for v in (v0, v1))
-    for duration, ref in admissible(disp, v0, v1, options, shortest):
+    for duration, ref in admissible(disp, v0, v1, options, shortest, params):
         if not passes_screen(ref, params, options):
             continue  # the palette's screen: the 3D model only where it may pass
         res = plan_shape_trajectory(ref, params, model="3d", options=options.planner)
