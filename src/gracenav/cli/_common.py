@@ -69,8 +69,9 @@ def add_palette_argument(parser: argparse.ArgumentParser, flag: str = "--palette
         metavar="FILE",
         help=(
             "motion policy palette to use: a file (e.g. one written by `gracenav palette "
-            "build --out FILE`) or a shipped palette by name: 'default' (0.5 m/s) or "
-            "'speed' (cruise levels 0.5, 1.0 and 1.2 m/s); a file of such a name is "
+            "build --out FILE`) or a shipped palette by name: 'default' (0.5 m/s), "
+            "'speed' (cruise levels 0.5, 1.0 and 1.2 m/s) or 'smooth' (0.5 m/s, the "
+            "ball's jerk within 2 m/s³); a file of such a name is "
             "./NAME (default: $GRACENAV_PALETTE, else the default palette)"
         ),
     )
