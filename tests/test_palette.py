@@ -16,6 +16,7 @@ from gracenav.execution.smoothness import JERK_WINDOW_S, jerk_profile
 from gracenav.palette import (
     PALETTE_ENV,
     Palette,
+    PaletteLimits,
     cached_palette_path,
     forget_read_palettes,
     load_palette,
@@ -328,13 +329,30 @@ def test_catches_reach_past_the_top_cruise_speed() -> None:
         catch_speeds_for((0.5, float("inf")))
 
 
+def _shipped_as_built(name: str, limits: PaletteLimits) -> Palette:
+    """The shipped palette ``name``, checked to be what `gracenav palette build` writes for
+    ``limits`` on the CMU robot with its designed gains (the key of those inputs), and
+    that every policy it keeps passed verification."""
+    from gracenav.palette import palette_file
+
+    params = BallbotParams()
+    pal = load_palette(name)
+    assert palette_file(name) == shipped_palette_path(name) != shipped_palette_path()
+    assert pal.key == palette_key(
+        params, design_gains(params), limits.verification_options(), 0.5, limits.primitive_options()
+    )
+    assert PaletteLimits.of(pal) == limits
+    kept = (*pal.policies, *pal.catches, *pal.shifts)
+    assert all(p.report is not None and p.report.passed for p in kept)
+    return pal
+
+
 def test_the_speed_palette_is_shipped_and_is_what_its_build_command_asks_for() -> None:
     """`--palette speed` is the file `gracenav palette build --reference limited
     --cruise-speeds 1.0 1.2` writes: its key is that of the command's inputs (the
     CMU robot, its designed gains, the command's limits), so it is reproducible; every
     policy it keeps passed verification and it carries the three levels."""
-    from gracenav import BallbotParams
-    from gracenav.palette import PaletteLimits, catch_speeds_for, palette_file
+    from gracenav.palette import catch_speeds_for
 
     speeds = (0.5, 1.0, 1.2)
     limits = PaletteLimits(
@@ -343,15 +361,7 @@ def test_the_speed_palette_is_shipped_and_is_what_its_build_command_asks_for() -
         max_speed=max(0.8, 1.1 * speeds[-1]),
         reference="limited",
     )
-    params = BallbotParams()
-    pal = load_palette("speed")
-    assert palette_file("speed") == shipped_palette_path("speed") != shipped_palette_path()
-    assert pal.key == palette_key(
-        params, design_gains(params), limits.verification_options(), 0.5, limits.primitive_options()
-    )
-    assert PaletteLimits.of(pal) == limits
-    kept = (*pal.policies, *pal.catches, *pal.shifts)
-    assert all(p.report is not None and p.report.passed for p in kept)
+    pal = _shipped_as_built("speed", limits)
     for name in ("cruise2_x", "cruise3_xy", "rest_to_cruise2_x_3_0"):
         assert name in pal.names, name
     assert "catch_1.3[pushed,S=1G]" in {c.label for c in pal.catches}
@@ -366,19 +376,8 @@ def test_the_smooth_palette_is_shipped_and_is_what_its_build_command_asks_for() 
     do, with the trims around each) within 2 m/s³ to 1 % (measured: 1.99-2.01; the
     default's reach 6.88), for 8.5 % more of their total duration (118.375 s against
     109.125 s)."""
-    from gracenav import BallbotParams
-    from gracenav.palette import PaletteLimits, palette_file
-
     limits = PaletteLimits(reference="limited", max_ball_jerk=2.0, shift_max_ball_jerk=2.0)
-    params = BallbotParams()
-    pal = load_palette("smooth")
-    assert palette_file("smooth") == shipped_palette_path("smooth") != shipped_palette_path()
-    assert pal.key == palette_key(
-        params, design_gains(params), limits.verification_options(), 0.5, limits.primitive_options()
-    )
-    assert PaletteLimits.of(pal) == limits
-    kept = (*pal.policies, *pal.catches, *pal.shifts)
-    assert all(p.report is not None and p.report.passed for p in kept)
+    pal = _shipped_as_built("smooth", limits)
     default = load_palette()
 
     def maneuvers(p: Palette) -> dict[str, SampledPrimitive]:
