@@ -199,6 +199,10 @@ KEYS = [
         {"simulation.position_noise_std": -0.01},
         "'simulation.position_noise_std' must be a number in [0, 1] m, got -0.01",
     ),
+    (
+        {"simulation.velocity_noise_std": 2},
+        "'simulation.velocity_noise_std' must be a number in [0, 1] m/s, got 2",
+    ),
     ({"simulation.max_time": 0}, "'simulation.max_time' must be a positive number (s), got 0"),
     ({"simulation.max_time": -5}, "'simulation.max_time' must be a positive number (s), got -5"),
     (

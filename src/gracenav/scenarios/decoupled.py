@@ -73,7 +73,11 @@ def run_decoupled(
     if not scenario.position_filter:
         options = dataclasses.replace(options, position_filter=False)
     limits = motion_limits(palette, options)
-    sim = SimulationOptions(position_noise_std=scenario.position_noise_std, seed=scenario.seed)
+    sim = SimulationOptions(
+        position_noise_std=scenario.position_noise_std,
+        velocity_noise_std=scenario.velocity_noise_std,
+        seed=scenario.seed,
+    )
     tolerance = ExecutionOptions().goal_tolerance
     radius = palette.params.ball_radius
     goal = scenario.goals[0]

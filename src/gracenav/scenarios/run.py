@@ -302,7 +302,9 @@ def _execution_options(scenario: Scenario) -> Any:
         plant=scenario.plant,
         max_time=scenario.max_time,
         simulation=SimulationOptions(
-            position_noise_std=scenario.position_noise_std, seed=scenario.seed
+            position_noise_std=scenario.position_noise_std,
+            velocity_noise_std=scenario.velocity_noise_std,
+            seed=scenario.seed,
         ),
         resume_from_balancing=scenario.resume_from_balancing,
         capture=scenario.capture,

@@ -73,6 +73,9 @@ class Scenario:
     seed : int
     position_noise_std : float
         (m)
+    velocity_noise_std : float
+        ``simulation.velocity_noise_std``: white noise on the measured ball velocity
+        (m/s; default 0), which the position filter is also tuned to.
     max_time : float
         (s)
     source : str
@@ -170,6 +173,7 @@ class Scenario:
     lattice_anchor: Literal["auto", "goal", "map"] = "auto"
     online_starts: bool = True
     online_ends: bool = True
+    velocity_noise_std: float = 0.0
 
 
 #: ``planner.lattice_anchor`` values (see :class:`Scenario`).
@@ -235,6 +239,9 @@ region as they would see the whole map."""
 
 MAX_NOISE_STD_M = 1.0
 """Largest position noise standard deviation (m)."""
+
+MAX_VELOCITY_NOISE_STD_MPS = 1.0
+"""Largest velocity noise standard deviation (m/s)."""
 
 PLANT_FACTOR_RANGE = (0.5, 2.0)
 """Allowed factors of ``simulation.plant_params`` (dimensionless, inclusive): half to
@@ -350,11 +357,22 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         )
     sim = top.sub("simulation", {})
     sim.check_keys(
-        {"plant", "seed", "position_noise_std", "position_filter", "max_time", "plant_params"}
+        {
+            "plant",
+            "seed",
+            "position_noise_std",
+            "velocity_noise_std",
+            "position_filter",
+            "max_time",
+            "plant_params",
+        }
     )
     plant = sim.choice("plant", PLANT_KINDS, "model3d")
     plant_factors = _plant_factors(sim)
     noise = sim.number("position_noise_std", 0.0, minimum=0.0, maximum=MAX_NOISE_STD_M, unit="m")
+    velocity_noise = sim.number(
+        "velocity_noise_std", 0.0, minimum=0.0, maximum=MAX_VELOCITY_NOISE_STD_MPS, unit="m/s"
+    )
     seed = sim.integer("seed", 0, maximum=2**32 - 1)
     position_filter = sim.boolean("position_filter", True)
     max_time = sim.number("max_time", 120.0, positive=True, unit="s")
@@ -434,6 +452,7 @@ def parse_scenario(data: Any, *, source: str = "scenario", base: Path | None = N
         plant=plant,  # type: ignore[arg-type]
         seed=seed,
         position_noise_std=noise,
+        velocity_noise_std=velocity_noise,
         position_filter=position_filter,
         max_time=max_time,
         source=source,
