@@ -137,6 +137,78 @@ def test_a_noisy_odometry_is_filtered_before_the_balancing_law() -> None:
     np.testing.assert_allclose(held[0.0], [0.5, -0.2], atol=0.02)
 
 
+def _balance_noisy(core: NavigatorCore, retune: float | None = None) -> np.ndarray:
+    """1 s of balancing in place at (0.5, -0.2) on 5 mm of odometry noise (seed 7): the
+    torques; with ``retune`` the core is told, half-way, that the noise is that (m)."""
+    from gracenav.sim import Model3DPlant, state_from_position
+
+    plant = Model3DPlant(core.palette.params, position_noise_std=0.005, seed=7)
+    plant.reset(state_from_position([0.5, -0.2, 0.0, 0.0], core.radius))
+    torques = []
+    for k in range(1024):
+        if retune is not None and k == 512:
+            core.set_noise(retune, 0.0)
+        tick = core.control(k * core.dt, plant.measure(), wall=0.0)
+        plant.advance(tick.torque, core.dt)
+        torques.append(tick.torque)
+    return np.array(torques)
+
+
+def test_a_noise_stated_by_the_readings_tunes_the_filter_as_the_option_does() -> None:
+    """``set_noise`` (what the node calls with the odometry's covariance when
+    ``noise_from_covariance`` is on) before the first reading gives, torque for torque,
+    the run of the ``position_noise_std`` option; a change within 10 % keeps the filter
+    (same torques), a larger one builds it again and goes on from the last estimate
+    (no step: the torque's change at the switch is within the run's largest);
+    refused and clipped values."""
+    from gracenav.palette import load_palette
+
+    palette = load_palette()
+    quiet = lambda lvl, msg: None  # noqa: E731
+    told = NavigatorOptions(state_timeout=0.1, stop_timeout=0.3, position_noise_std=0.005)
+    by_option = _balance_noisy(NavigatorCore(palette, told, log=quiet))
+    opts = NavigatorOptions(state_timeout=0.1, stop_timeout=0.3)
+    lines: list[tuple[str, str]] = []
+    core = NavigatorCore(palette, opts, log=lambda lvl, msg: lines.append((lvl, msg)))
+    assert core.set_noise(0.005, 0.0)
+    assert any("position filter tuned to 5 mm" in m for _, m in lines)
+    np.testing.assert_array_equal(_balance_noisy(core), by_option)
+    core = NavigatorCore(palette, opts, log=quiet)
+    core.set_noise(0.005, 0.0)
+    np.testing.assert_array_equal(_balance_noisy(core, retune=0.0052), by_option)
+    core = NavigatorCore(palette, opts, log=quiet)
+    core.set_noise(0.005, 0.0)
+    retuned = _balance_noisy(core, retune=0.01)
+    np.testing.assert_array_equal(retuned[:512], by_option[:512])
+    assert not np.array_equal(retuned[512:], by_option[512:])
+    steps = np.abs(np.diff(retuned, axis=0)).max(axis=1)
+    assert steps[511] <= steps.max() and steps[511] < 5 * np.median(steps)
+    assert core.set_noise(0.0, 0.0) and not core.set_noise(0.0, 0.0)
+    lines.clear()
+    core = NavigatorCore(palette, opts, log=lambda lvl, msg: lines.append((lvl, msg)))
+    assert core.set_noise(3.0, 2.0) and not core.set_noise(1.0, 1.0)  # clipped to 1 and 1
+    assert [m for _, m in lines] == ["position filter tuned to 1e+03 mm and 1e+03 mm/s of noise"]
+    from gracenav.errors import ConfigError
+
+    for bad in (-0.001, float("nan")):
+        with pytest.raises(ConfigError, match="non-negative standard deviation"):
+            core.set_noise(bad, 0.0)
+
+
+def test_odometry_covariances_state_the_noise() -> None:
+    pose, twist = np.zeros(36), np.zeros(36)
+    pose[0], pose[7], twist[0], twist[7] = 0.005**2, 0.004**2, 0.01**2, 0.02**2
+    got = convert.noise_from_covariance(pose, twist)
+    assert got is not None
+    np.testing.assert_allclose(got, (0.005, 0.02), rtol=1e-12)
+    assert convert.noise_from_covariance(np.zeros(36), np.zeros(36)) == (0.0, 0.0)
+    for k, v in ((0, -1.0), (7, float("nan")), (0, float("inf"))):
+        bad = pose.copy()
+        bad[k] = v
+        assert convert.noise_from_covariance(bad, twist) is None
+    assert convert.noise_from_covariance(np.zeros(9), twist) is None
+
+
 def test_silence_holds_then_stops_and_readings_bring_balancing_back() -> None:
     lines: list[tuple[str, str]] = []
     core = _core(lines)

@@ -1,7 +1,8 @@
 """The two ROS 2 nodes in separate processes over real DDS on this machine: the robot
 reaches the goal, recovers from a push sent on the topic, bad messages are dropped with
-a log line, silence makes the navigator hold and then stop, and SIGINT ends both
-cleanly. Every wait is bounded."""
+a log line (the navigator reading its noise from the odometry's covariances), silence
+makes the navigator hold and then stop, and SIGINT ends both cleanly. Every wait is
+bounded."""
 
 from __future__ import annotations
 
@@ -129,7 +130,15 @@ def test_nodes_reach_the_goal_recover_from_a_push_and_stop_cleanly(
     )
     nav = subprocess.Popen(
         node_command(
-            "ros", "navigate", "--log", str(log), "--ros-args", "-p", "state_timeout:=0.2"
+            "ros",
+            "navigate",
+            "--log",
+            str(log),
+            "--ros-args",
+            "-p",
+            "state_timeout:=0.2",
+            "-p",
+            "noise_from_covariance:=true",  # the simulator's zero covariances: no filter
         ),
         env=ros_env,
         stdout=nav_err,
@@ -163,6 +172,10 @@ def test_nodes_reach_the_goal_recover_from_a_push_and_stop_cleanly(
         nan.header.frame_id = "odom"
         nan.pose.pose.position.x = float("nan")
         odom_pub.publish(nan)
+        negative = Odometry()
+        negative.header.frame_id = "odom"
+        negative.pose.covariance[7] = -1.0
+        odom_pub.publish(negative)
         imu = Imu()
         imu.header.frame_id = "base_link"
         imu.orientation.w = float("nan")
@@ -200,6 +213,7 @@ def test_nodes_reach_the_goal_recover_from_a_push_and_stop_cleanly(
         text = nav_log()
         assert "/odom: frame_id 'wrong_frame' is not 'odom' or 'map'; dropped" in text
         assert "/odom: position or velocity is not finite; dropped" in text
+        assert "/odom: a position or velocity variance is negative or not finite; dropped" in text
         assert "/imu: orientation or angular velocity is not finite; dropped" in text
         assert "/goal_pose: frame_id 'base_link' is not 'map'; dropped" in text
         assert "push of (0, 9) N s" in (tmp_path / "sim.log").read_text()

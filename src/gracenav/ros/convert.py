@@ -31,6 +31,7 @@ __all__ = [
     "imu_from_state",
     "lean_from_quaternion",
     "lean_quaternion",
+    "noise_from_covariance",
     "odometry_from_state",
     "seconds_stamp",
     "stamp_seconds",
@@ -82,6 +83,23 @@ def torque_from_vector(vector: ArrayLike) -> FloatArray:
 def finite(*values: float | ArrayLike) -> bool:
     """Whether every number given is finite."""
     return all(bool(np.all(np.isfinite(np.asarray(v, dtype=float)))) for v in values)
+
+
+def noise_from_covariance(
+    pose_covariance: ArrayLike, twist_covariance: ArrayLike
+) -> tuple[float, float] | None:
+    """The standard deviations (m, m/s) of the ball position and velocity that an
+    Odometry message's covariances state (each 6 × 6 row-major, REP-103 order x, y, z,
+    roll, pitch, yaw): per quantity the larger of the x and y variances' square roots.
+    None if one of the four variances is negative or not finite (not a variance)."""
+    pose = np.asarray(pose_covariance, dtype=float).reshape(-1)
+    twist = np.asarray(twist_covariance, dtype=float).reshape(-1)
+    if pose.size != 36 or twist.size != 36:
+        return None
+    var = np.array([pose[0], pose[7], twist[0], twist[7]])
+    if not (np.all(np.isfinite(var)) and np.all(var >= 0.0)):
+        return None
+    return float(np.sqrt(max(var[0], var[1]))), float(np.sqrt(max(var[2], var[3])))
 
 
 def stamp_seconds(sec: int, nanosec: int) -> float:

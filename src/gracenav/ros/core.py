@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import enum
 import json
+import math
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -35,6 +36,11 @@ Logger = Callable[[str, str], None]
 
 _NO_CENTER = np.zeros((0,))
 _NO_SHAPE = np.zeros((0, 0))
+
+#: Relative change of a stated noise (:meth:`NavigatorCore.set_noise`) below which the
+#: position filter is kept as it is (a covariance that moves a little every reading
+#: does not rebuild it every tick).
+NOISE_CHANGE = 0.1
 
 
 class Phase(enum.Enum):
@@ -178,6 +184,7 @@ class NavigatorCore:
         self._estimator = PositionEstimator(
             self.radius, self.dt, position_std=options.position_noise_std
         )
+        self._noise = (float(options.position_noise_std), 0.0)
         self._estimated = False
         self._lock = threading.Lock()
         self.phase = Phase.WAITING_FOR_MAP
@@ -338,6 +345,39 @@ class NavigatorCore:
             )
         tau, _ = self.law(x, self._hold, np.zeros(2), _NO_CENTER, _NO_SHAPE)
         return np.asarray(tau, dtype=float)
+
+    def set_noise(self, position_std: float, velocity_std: float) -> bool:
+        """Tune the position filter to the noise (m, m/s) a reading states (e.g. its
+        covariance): each clipped to [0, 1]. The filter is built again only when either
+        differs from the one it is tuned to by more than :data:`NOISE_CHANGE` (relative;
+        from or to zero, any change), and then goes on from its last estimate. Returns
+        whether it was built again.
+
+        Raises
+        ------
+        ConfigError
+            A standard deviation that is negative or not finite.
+        """
+        for name, v in (("position_std", position_std), ("velocity_std", velocity_std)):
+            if not (math.isfinite(v) and v >= 0.0):
+                raise ConfigError(f"{name} must be a non-negative standard deviation, got {v!r}")
+        new = (min(float(position_std), 1.0), min(float(velocity_std), 1.0))
+        if all(
+            abs(a - b) <= NOISE_CHANGE * max(a, b) and (a > 0) == (b > 0)
+            for a, b in zip(new, self._noise, strict=True)
+        ):
+            return False
+        from gracenav.control import PositionEstimator
+
+        estimator = PositionEstimator(self.radius, self.dt, *new)
+        if self._estimated and self.x_last is not None:
+            estimator.reset(self.x_last)  # the last estimate, not a new measurement
+        self._estimator, self._noise = estimator, new
+        self.log(
+            "info",
+            f"position filter tuned to {new[0] * 1e3:.3g} mm and {new[1] * 1e3:.3g} mm/s of noise",
+        )
+        return True
 
     def control(self, t: float, x: ArrayLike, wall: float | None = None) -> TickResult:
         """The command for the state ``x`` (8,) measured at time ``t`` (s, the reading's

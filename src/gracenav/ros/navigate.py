@@ -56,6 +56,7 @@ PARAMETERS: dict[str, Any] = {
     "stop_timeout": 0.5,
     "sync_tolerance": 0.5e-3,
     "position_noise_std": 0.0,
+    "noise_from_covariance": False,
     "log_file": "",
     "exit_when_done": False,
 }
@@ -113,6 +114,7 @@ class _Navigator:
             position_noise_std=float(par["position_noise_std"]),
         )
         self.sync = float(par["sync_tolerance"])
+        self.noise_from_covariance = bool(par["noise_from_covariance"])
         self.exit_when_done = bool(par["exit_when_done"])
         self.logger = node.get_logger()
         recorder = None
@@ -211,6 +213,14 @@ class _Navigator:
         if not np.all(np.isfinite(ps)):
             self.core.reject("/odom", "position or velocity is not finite")
             return
+        if self.noise_from_covariance:
+            noise = convert.noise_from_covariance(msg.pose.covariance, msg.twist.covariance)
+            if noise is None:
+                self.core.reject(
+                    "/odom", "a position or velocity variance is negative or not finite"
+                )
+                return
+            self.core.set_noise(*noise)
         self._odom = (seconds(msg.header), ps)
         self._try_tick()
 
