@@ -111,35 +111,12 @@ def test_without_a_map_the_robot_balances_in_place_and_a_goal_waits() -> None:
     assert np.hypot(*x[2:4]) < 0.01 and np.hypot(*p[2:]) < 0.05
 
 
-def test_a_noisy_odometry_is_filtered_before_the_balancing_law() -> None:
-    """5 mm of noise on the odometry's position: told so (``position_noise_std``), the
-    node balances in place on the filtered position, with a fraction of the torque's
-    chatter; the position it keeps is the same to within the noise."""
-    from gracenav.palette import load_palette
-    from gracenav.sim import Model3DPlant, state_from_position
-
-    palette = load_palette()
-    chatter, held = {}, {}
-    for told in (0.0, 0.005):
-        opts = NavigatorOptions(state_timeout=0.1, stop_timeout=0.3, position_noise_std=told)
-        core = NavigatorCore(palette, opts, log=lambda lvl, msg: None)
-        plant = Model3DPlant(palette.params, position_noise_std=0.005, seed=7)
-        plant.reset(state_from_position([0.5, -0.2, 0.0, 0.0], core.radius))
-        torques = []
-        for k in range(1024):  # 1 s
-            tick = core.control(k * core.dt, plant.measure(), wall=0.0)
-            plant.advance(tick.torque, core.dt)
-            torques.append(tick.torque)
-        chatter[told] = float(np.mean(np.abs(np.diff(np.array(torques), axis=0))))
-        held[told] = convert.odometry_from_state(plant.state(), core.radius)[:2]
-    assert chatter[0.005] < 0.2 * chatter[0.0]
-    np.testing.assert_allclose(held[0.005], [0.5, -0.2], atol=0.02)
-    np.testing.assert_allclose(held[0.0], [0.5, -0.2], atol=0.02)
-
-
-def _balance_noisy(core: NavigatorCore, retune: float | None = None) -> np.ndarray:
+def _balance_noisy(
+    core: NavigatorCore, retune: float | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """1 s of balancing in place at (0.5, -0.2) on 5 mm of odometry noise (seed 7): the
-    torques; with ``retune`` the core is told, half-way, that the noise is that (m)."""
+    torques and the ball's true position at the end; with ``retune`` the core is told,
+    half-way, that the noise is that (m)."""
     from gracenav.sim import Model3DPlant, state_from_position
 
     plant = Model3DPlant(core.palette.params, position_noise_std=0.005, seed=7)
@@ -151,7 +128,25 @@ def _balance_noisy(core: NavigatorCore, retune: float | None = None) -> np.ndarr
         tick = core.control(k * core.dt, plant.measure(), wall=0.0)
         plant.advance(tick.torque, core.dt)
         torques.append(tick.torque)
-    return np.array(torques)
+    return np.array(torques), convert.odometry_from_state(plant.state(), core.radius)[:2]
+
+
+def test_a_noisy_odometry_is_filtered_before_the_balancing_law() -> None:
+    """5 mm of noise on the odometry's position: told so (``position_noise_std``), the
+    node balances in place on the filtered position, with a fraction of the torque's
+    chatter; the position it keeps is the same to within the noise."""
+    from gracenav.palette import load_palette
+
+    palette = load_palette()
+    chatter, held = {}, {}
+    for told in (0.0, 0.005):
+        opts = NavigatorOptions(state_timeout=0.1, stop_timeout=0.3, position_noise_std=told)
+        core = NavigatorCore(palette, opts, log=lambda lvl, msg: None)
+        torques, held[told] = _balance_noisy(core)
+        chatter[told] = float(np.mean(np.abs(np.diff(torques, axis=0))))
+    assert chatter[0.005] < 0.2 * chatter[0.0]
+    np.testing.assert_allclose(held[0.005], [0.5, -0.2], atol=0.02)
+    np.testing.assert_allclose(held[0.0], [0.5, -0.2], atol=0.02)
 
 
 def test_a_noise_stated_by_the_readings_tunes_the_filter_as_the_option_does() -> None:
@@ -166,19 +161,19 @@ def test_a_noise_stated_by_the_readings_tunes_the_filter_as_the_option_does() ->
     palette = load_palette()
     quiet = lambda lvl, msg: None  # noqa: E731
     told = NavigatorOptions(state_timeout=0.1, stop_timeout=0.3, position_noise_std=0.005)
-    by_option = _balance_noisy(NavigatorCore(palette, told, log=quiet))
+    by_option, _ = _balance_noisy(NavigatorCore(palette, told, log=quiet))
     opts = NavigatorOptions(state_timeout=0.1, stop_timeout=0.3)
     lines: list[tuple[str, str]] = []
     core = NavigatorCore(palette, opts, log=lambda lvl, msg: lines.append((lvl, msg)))
     assert core.set_noise(0.005, 0.0)
     assert any("position filter tuned to 5 mm" in m for _, m in lines)
-    np.testing.assert_array_equal(_balance_noisy(core), by_option)
+    np.testing.assert_array_equal(_balance_noisy(core)[0], by_option)
     core = NavigatorCore(palette, opts, log=quiet)
     core.set_noise(0.005, 0.0)
-    np.testing.assert_array_equal(_balance_noisy(core, retune=0.0052), by_option)
+    np.testing.assert_array_equal(_balance_noisy(core, retune=0.0052)[0], by_option)
     core = NavigatorCore(palette, opts, log=quiet)
     core.set_noise(0.005, 0.0)
-    retuned = _balance_noisy(core, retune=0.01)
+    retuned, _ = _balance_noisy(core, retune=0.01)
     np.testing.assert_array_equal(retuned[:512], by_option[:512])
     assert not np.array_equal(retuned[512:], by_option[512:])
     steps = np.abs(np.diff(retuned, axis=0)).max(axis=1)
