@@ -363,10 +363,9 @@ class NavigatorCore:
                 raise ConfigError(f"{name} must be a non-negative standard deviation, got {v!r}")
         new = (min(float(position_std), 1.0), min(float(velocity_std), 1.0))
         if all(
-            abs(a - b) <= NOISE_CHANGE * max(a, b) and (a > 0) == (b > 0)
-            for a, b in zip(new, self._noise, strict=True)
+            abs(a - b) <= NOISE_CHANGE * max(a, b) for a, b in zip(new, self._noise, strict=True)
         ):
-            return False
+            return False  # within 10 % of each (so zero stays zero, and any change from it counts)
         from gracenav.control import PositionEstimator
 
         estimator = PositionEstimator(self.radius, self.dt, *new)
