@@ -33,7 +33,7 @@ import time
 
 import numpy as np
 
-from gracenav.execution.smoothness import JERK_WINDOW_S, jerk_profile
+from gracenav.execution.smoothness import planned_jerk
 from gracenav.primitives import PrimitiveSetOptions, primitive_set
 from gracenav.primitives.motion import Maneuver
 
@@ -45,10 +45,7 @@ def plan_ball_jerk(p: Maneuver) -> float:
     after it (constant velocity for a window each side), so that its ends count."""
     n = round(p.duration * RATE)
     t = np.arange(n + 1) / RATE
-    v = p.sample(t).position[:, 2:4]
-    pad = round(JERK_WINDOW_S * RATE)
-    v = np.vstack([np.repeat(v[:1], pad, axis=0), v, np.repeat(v[-1:], pad, axis=0)])
-    return jerk_profile(np.arange(len(v)) / RATE, v).max
+    return planned_jerk(p.sample(t).position[:, 2:4], 1.0 / RATE)
 
 
 def main() -> None:

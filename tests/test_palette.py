@@ -12,7 +12,7 @@ import pytest
 import gracenav.palette.files as palette_module
 from gracenav import BallbotParams, CacheError
 from gracenav.control import ControllerGains, LQRWeights, design_gains
-from gracenav.execution.smoothness import JERK_WINDOW_S, jerk_profile
+from gracenav.execution.smoothness import planned_jerk
 from gracenav.palette import (
     PALETTE_ENV,
     Palette,
@@ -388,10 +388,7 @@ def test_the_smooth_palette_is_shipped_and_is_what_its_build_command_asks_for() 
         }
 
     def ball_jerk(prim: SampledPrimitive) -> float:
-        v = prim.position[:, 2:4]
-        pad = round(JERK_WINDOW_S / prim.dt)
-        v = np.vstack([np.repeat(v[:1], pad, axis=0), v, np.repeat(v[-1:], pad, axis=0)])
-        return jerk_profile(np.arange(len(v)) * prim.dt, v).max
+        return planned_jerk(prim.position[:, 2:4], prim.dt)
 
     smooth, fast = maneuvers(pal), maneuvers(default)
     assert len(smooth) == 36 and set(smooth) == set(fast)

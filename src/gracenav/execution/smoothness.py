@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["JERK_POLYORDER", "JERK_WINDOW_S", "JerkProfile", "jerk_profile"]
+__all__ = ["JERK_POLYORDER", "JERK_WINDOW_S", "JerkProfile", "jerk_profile", "planned_jerk"]
 
 FloatArray = NDArray[np.float64]
 
@@ -135,3 +135,21 @@ def jerk_profile(
     for b in breaks:
         keep &= np.abs(t - b) > reach
     return JerkProfile(t[keep].copy(), np.asarray(np.linalg.norm(j[keep], axis=1)))
+
+
+def planned_jerk(velocity: ArrayLike, dt: float) -> float:
+    """Largest jerk (m/s³) of a planned motion's velocity, as a run's summary measures it,
+    with the trims before and after it held for a window each side (constant velocity),
+    so that its ends count.
+
+    Parameters
+    ----------
+    velocity : array_like, shape (N, D)
+        Velocity (m/s) at ticks ``dt`` apart (a primitive's or maneuver's plan).
+    dt : float
+        Tick (s).
+    """
+    v = np.asarray(velocity, dtype=float)
+    pad = round(JERK_WINDOW_S / dt)
+    v = np.vstack([np.repeat(v[:1], pad, axis=0), v, np.repeat(v[-1:], pad, axis=0)])
+    return jerk_profile(np.arange(len(v)) * dt, v).max
