@@ -32,7 +32,11 @@ through one maneuver designed and verified at the start; the baseline ignores it
 and verified when the task starts, straight to rest at the goal);
 ``--no-position-filter`` sets ``simulation.position_filter: false`` on both pairs'
 measurements (both planners act on the raw noisy position; the long task has no
-noise). ``--breakdown``
+noise). ``--baseline-jerk-scales S1,S2,...``
+runs, after the pairs, the decoupled baseline alone on the same pairs at each jerk scale
+(``DecoupledOptions.jerk_scale``: its flat output's jerk limit is that factor times κ
+times the palette's largest lean rate; the default is 0.9), its time against its
+jerk. ``--breakdown``
 also prints, per pair, where gracenav's time goes (the start: capture regulators,
 catches, shifts and rest trims before the first lattice maneuver that moves; the
 lattice's maneuvers; the end after the last one), its path against the baseline's, and
@@ -42,7 +46,7 @@ to stderr, the tables to stdout.
     OPENBLAS_NUM_THREADS=1 nice -n 5 .venv/bin/python bench/bench_speed.py
         [--trials 20] [--seed N] [--only long|pairs] [--lean-limit-deg 5]
         [--design-push 8] [--no-online-starts] [--no-online-ends]
-        [--no-position-filter] [--breakdown]
+        [--no-position-filter] [--breakdown] [--baseline-jerk-scales 0.9,1.8,3.6]
 """
 
 from __future__ import annotations
@@ -270,6 +274,68 @@ def _print_breakdown(rows: list[tuple[dict[str, Any], dict[str, Any], dict[str, 
     )
 
 
+def _pairs_campaign(
+    seed: int | None, planner: dict[str, Any], simulation: dict[str, Any] | None
+) -> Any:
+    """The random pairs campaign with ``seed`` (None: the file's) and the planner and
+    simulation keys set."""
+    from gracenav.campaign import load_campaign
+
+    campaign = load_campaign(PAIRS)
+    if seed is not None:
+        campaign = dataclasses.replace(campaign, seed=seed)
+    doc = dict(campaign.scenario)
+    doc["planner"] = {**(doc.get("planner") or {}), **planner}
+    doc["simulation"] = {**(doc.get("simulation") or {}), **(simulation or {})}
+    return dataclasses.replace(campaign, scenario=doc)
+
+
+def bench_baseline_jerk(
+    palette: Any,
+    trials: int,
+    seed: int | None,
+    planner: dict[str, Any],
+    simulation: dict[str, Any] | None,
+    scales: list[float],
+) -> None:
+    """The decoupled baseline alone on the pairs at each jerk scale
+    (``DecoupledOptions.jerk_scale``): its time against its jerk, to set beside
+    gracenav's palettes at the same lean, speed and torque limits."""
+    from gracenav.baseline import DecoupledOptions, motion_limits
+    from gracenav.campaign.runner import trial_result
+
+    campaign = _pairs_campaign(seed, planner, simulation)
+    print(
+        f"decoupled baseline by jerk scale: {PAIRS.relative_to(HERE.parent)}, first "
+        f"{trials} trials, seed {campaign.seed}"
+    )
+    print(
+        "  jerk scale  jerk limit (m/s³)  filter T (s)  success  time (s)  max jerk  p95 jerk"
+        "  max lean (°)"
+    )
+    t0 = time.perf_counter()
+    for scale in scales:
+        options = DecoupledOptions(jerk_scale=scale)
+        limits = motion_limits(palette, options)
+        rows = []
+        for i in range(trials):
+            row, _ = trial_result(campaign, i, "decoupled", decoupled_options=options)
+            rows.append(row)
+            print(
+                f"baseline jerk scale {scale:g}: trial {i + 1}/{trials} "
+                f"({time.perf_counter() - t0:.0f} s)",
+                file=sys.stderr,
+                flush=True,
+            )
+        r = _row("decoupled", rows, None)
+        print(
+            f"  {scale:10.2f}  {limits.max_jerk:17.2f}  {limits.filter_time:12.3f}  "
+            f"{r['success']:>7}  {r['time']:8.2f}  {r['max_jerk']:8.2f}  {r['p95_jerk']:8.2f}"
+            f"  {r['lean_max']:12.2f}",
+            flush=True,
+        )
+
+
 def bench_pairs(
     palette: Any,
     trials: int,
@@ -279,17 +345,10 @@ def bench_pairs(
     breakdown: bool = False,
     simulation: dict[str, Any] | None = None,
 ) -> None:
-    from gracenav.campaign import load_campaign
     from gracenav.campaign.runner import trial_result
     from gracenav.model import physical_time_bound
 
-    campaign = load_campaign(PAIRS)
-    if seed is not None:
-        campaign = dataclasses.replace(campaign, seed=seed)
-    doc = dict(campaign.scenario)
-    doc["planner"] = {**(doc.get("planner") or {}), **planner}
-    doc["simulation"] = {**(doc.get("simulation") or {}), **(simulation or {})}
-    campaign = dataclasses.replace(campaign, scenario=doc)
+    campaign = _pairs_campaign(seed, planner, simulation)
     by_planner: dict[str, list[dict[str, Any]]] = {p: [] for p in PLANNERS}
     phases: list[tuple[dict[str, Any], dict[str, Any], dict[str, Any]]] = []
     t0 = time.perf_counter()
@@ -329,6 +388,18 @@ def _lean_limits(palette: Any) -> tuple[float, float]:
         math.degrees(PaletteLimits.of(palette).max_lean),
         math.degrees(palette.options.lean_limit),
     )
+
+
+def _scales(text: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"not a comma-separated list of numbers: {text!r}"
+        ) from None
+    if not values or not all(0 < v <= 10 for v in values):
+        raise argparse.ArgumentTypeError(f"jerk scales lie in (0, 10], got {text!r}")
+    return values
 
 
 def main() -> None:
@@ -372,6 +443,14 @@ def main() -> None:
         "noisy position)",
     )
     ap.add_argument(
+        "--baseline-jerk-scales",
+        type=_scales,
+        default=None,
+        metavar="S1,S2,...",
+        help="pairs: also the decoupled baseline alone at each jerk scale "
+        "(DecoupledOptions.jerk_scale; its default is accel_scale, 0.9)",
+    )
+    ap.add_argument(
         "--breakdown",
         action="store_true",
         help="pairs: also where gracenav's time and largest jerk lie, pair by pair",
@@ -393,6 +472,11 @@ def main() -> None:
     if args.only in (None, "pairs"):
         simulation = {"position_filter": False} if args.no_position_filter else {}
         bench_pairs(palette, args.trials, args.seed, lean, planner, args.breakdown, simulation)
+    if args.baseline_jerk_scales:
+        simulation = {"position_filter": False} if args.no_position_filter else {}
+        bench_baseline_jerk(
+            palette, args.trials, args.seed, planner, simulation, args.baseline_jerk_scales
+        )
 
 
 if __name__ == "__main__":

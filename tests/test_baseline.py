@@ -185,6 +185,12 @@ def test_motion_limits_come_from_the_palette(palette: Palette) -> None:
         flat_output_gain(palette.params) * palette.primitive_options.max_lean, rel=1e-12
     )
     assert 0.5 < lim.max_jerk < 5.0
+    # the jerk scale moves the jerk limit alone; without it the jerk follows accel_scale
+    scaled = motion_limits(palette, DecoupledOptions(accel_scale=0.5, jerk_scale=2.0))
+    assert scaled.max_jerk == pytest.approx(2.0 * lim.max_jerk, rel=1e-12)
+    assert scaled.max_acceleration == pytest.approx(0.5 * lim.max_acceleration, rel=1e-12)
+    halved = motion_limits(palette, DecoupledOptions(accel_scale=0.5))
+    assert halved.max_jerk == pytest.approx(0.5 * lim.max_jerk, rel=1e-12)
 
 
 def test_options_are_checked() -> None:
@@ -192,6 +198,9 @@ def test_options_are_checked() -> None:
         DecoupledOptions(safety_margin=0.05, smooth_margin=0.1)
     with pytest.raises(ConfigError, match="speed_scale"):
         DecoupledOptions(speed_scale=1.5)
+    for bad in (0.0, -1.0, 10.5, float("nan")):
+        with pytest.raises(ConfigError, match="jerk_scale"):
+            DecoupledOptions(jerk_scale=bad)
 
 
 def test_no_push_run_reaches_the_goal_without_contact() -> None:
@@ -249,3 +258,22 @@ def test_drag_waits_then_replans_once() -> None:
     result = run_decoupled(parse_scenario(_scenario(disturbances=[drag]), source="drag.yaml"))
     assert result.runs[0].reached_goal
     assert len(result.episodes[0].tree_seconds) == 2  # the first plan and one after the drag
+
+
+def test_a_harder_jerk_limit_trades_jerk_for_time() -> None:
+    """``DecoupledOptions.jerk_scale`` reaches the campaign's runs: on a random pair,
+    twice the jerk limit (box filters half as wide) reaches the goal sooner and jerks
+    the ball harder (measured on trial 0: 8.57 against 9.60 s, 5.24 against 1.58 m/s³)."""
+    from pairs import pairs_campaign
+
+    from gracenav.campaign.runner import trial_result
+
+    campaign = pairs_campaign(online_starts=True)
+    rows = [
+        trial_result(campaign, 0, "decoupled", decoupled_options=DecoupledOptions(jerk_scale=s))[0]
+        for s in (0.9, 1.8)
+    ]
+    assert all(r["reached_goal"] for r in rows)
+    slow, fast = rows
+    assert fast["time_s"] < slow["time_s"] - 0.25
+    assert fast["max_jerk_mps3"] > 2.0 * slow["max_jerk_mps3"]

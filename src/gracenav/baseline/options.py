@@ -36,7 +36,14 @@ class DecoupledOptions:
     speed_scale : float
         Fraction of the palette's fastest trim speed used as the speed limit.
     accel_scale : float
-        Fraction of the palette's acceleration and jerk limits used.
+        Fraction of the palette's acceleration limit used, and of its jerk limit unless
+        ``jerk_scale`` is given.
+    jerk_scale : float, optional
+        Factor on the palette's jerk limit, in (0, 10]; None: ``accel_scale``. Above 1
+        the flat output jerks harder than the palette's largest lean rate allows on the
+        linearised model (its box filters narrow, so the ball's jerk rises faster than
+        the flat output's); for the trade of time against jerk
+        (``bench/bench_speed.py --baseline-jerk-scales``).
     lateral_fraction : float
         Fraction of the acceleration limit that the curvature speed cap leaves to
         the lateral acceleration v² k (the rest is for speeding up and slowing down).
@@ -62,6 +69,7 @@ class DecoupledOptions:
     smoothing_spacing: float = 0.5
     speed_scale: float = 1.0
     accel_scale: float = 0.9
+    jerk_scale: float | None = None
     lateral_fraction: float = 0.6
     replan_error: float = 0.25
     max_replans: int = 5
@@ -79,6 +87,13 @@ class DecoupledOptions:
             v = getattr(self, name)
             if not (0 < v <= 1):
                 raise ConfigError(f"DecoupledOptions.{name} must lie in (0, 1], got {v!r}")
+        if self.jerk_scale is not None and not (
+            math.isfinite(self.jerk_scale) and 0 < self.jerk_scale <= 10
+        ):
+            raise ConfigError(
+                f"DecoupledOptions.jerk_scale must lie in (0, 10] or be None, got "
+                f"{self.jerk_scale!r}"
+            )
         if not (0 <= self.smooth_margin <= self.safety_margin):
             raise ConfigError(
                 "DecoupledOptions needs 0 <= smooth_margin <= safety_margin, got "
@@ -126,8 +141,9 @@ def motion_limits(palette: Palette, options: DecoupledOptions | None = None) -> 
     Speed: the fastest trim speed (:func:`gracenav.library.max_trim_speed`).
     Acceleration: κ · ``primitive_options.max_lean``, the lean bound of the maneuvers
     (for the linearised model the flat output accelerates at ÿ = κ φ).
-    Jerk: κ · the largest lean rate of the palette's primitives (jerk = κ φ̇); both
-    acceleration and jerk are scaled by ``options.accel_scale``.
+    Jerk: κ · the largest lean rate of the palette's primitives (jerk = κ φ̇). The
+    acceleration is scaled by ``options.accel_scale``, the jerk by
+    ``options.jerk_scale`` (default the same ``accel_scale``).
     """
     from gracenav.library import max_trim_speed
     from gracenav.primitives.shape_planner import flat_output_gain
@@ -139,8 +155,9 @@ def motion_limits(palette: Palette, options: DecoupledOptions | None = None) -> 
         raise ConfigError("the palette has no cruise trim: no speed limit for the baseline")
     lean_rate = max(float(np.max(np.abs(p.primitive.states[:, 6:8]))) for p in palette.policies)
     acc = kappa * palette.primitive_options.max_lean * options.accel_scale
+    jerk_scale = options.jerk_scale if options.jerk_scale is not None else options.accel_scale
     return MotionLimits(
         max_speed=speed * options.speed_scale,
         max_acceleration=acc,
-        max_jerk=kappa * lean_rate * options.accel_scale,
+        max_jerk=kappa * lean_rate * jerk_scale,
     )

@@ -10,11 +10,14 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from gracenav.campaign.draw import PairCheck, draw_trial, trial_scenario
 from gracenav.campaign.spec import Campaign
 from gracenav.errors import ConfigError, OutputError
+
+if TYPE_CHECKING:
+    from gracenav.baseline import DecoupledOptions
 
 __all__ = ["CLUSTER_TIMEOUT_S", "run_campaign", "run_trial", "trial_result"]
 
@@ -104,14 +107,22 @@ def run_trial(campaign: Campaign, index: int, planner: str, params: Any = None) 
 
 
 def trial_result(
-    campaign: Campaign, index: int, planner: str, params: Any = None
+    campaign: Campaign,
+    index: int,
+    planner: str,
+    params: Any = None,
+    *,
+    decoupled_options: DecoupledOptions | None = None,
 ) -> tuple[dict[str, Any], Any]:
     """Run trial ``index`` with ``planner``: its result row (:func:`run_trial`) and the
     :class:`gracenav.scenarios.ScenarioResult` (None when no plan was found), for
-    measurements that need the run itself (its episode, its library)."""
+    measurements that need the run itself (its episode, its library).
+    ``decoupled_options`` (:class:`gracenav.baseline.DecoupledOptions`, default its
+    defaults) configures the decoupled baseline."""
     from gracenav.errors import PlanningError
     from gracenav.execution import EventReason
     from gracenav.scenarios import parse_scenario, run_scenario
+    from gracenav.scenarios.decoupled import run_decoupled
 
     accept = _pair_check(campaign) if campaign.pairs is not None else None
     inputs = draw_trial(campaign, index, accept)
@@ -120,7 +131,9 @@ def trial_result(
     row: dict[str, Any] = {"planner": planner, **inputs}
     try:
         if scenario.planner == "decoupled":
-            result = run_scenario(scenario, palette=_palette(), params=params)
+            result = run_decoupled(
+                scenario, palette=_palette(), params=params, options=decoupled_options
+            )
         else:
             result = run_scenario(
                 scenario, palette=_palette(), params=params, prepared=_prepared(scenario)
