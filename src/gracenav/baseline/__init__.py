@@ -17,7 +17,8 @@ baseline*):
    last resort).
 3. **Time parameterization** within the palette's limits (:func:`motion_limits`):
    speed ≤ the fastest trim speed, |acceleration| ≤ κ · max lean of the primitive set
-   (κ the flat-output gain), jerk ≤ κ · the palette's largest lean rate. A forward and
+   (κ the flat-output gain), jerk ≤ κ · the palette's largest lean rate (each times
+   its scale in :class:`DecoupledOptions`). A forward and
    a backward pass on the arc length with the friction-circle bound
    √(a_t² + (v² k)²) ≤ a_max and v ≤ √(lateral_fraction · a_max / |k|), then the
    speed profile is smoothed in time by three box filters of width
