@@ -36,7 +36,8 @@ noise). ``--baseline-jerk-scales S1,S2,...``
 runs, after the pairs, the decoupled baseline alone on the same pairs at each jerk scale
 (``DecoupledOptions.jerk_scale``: its flat output's jerk limit is that factor times κ
 times the palette's largest lean rate; the default is 0.9), its time against its
-jerk. ``--breakdown``
+jerk, and (after the pairs) the baseline's time at gracenav's median max jerk and its
+jerk at gracenav's median time, interpolated between the scales around them. ``--breakdown``
 also prints, per pair, where gracenav's time goes (the start: capture regulators,
 catches, shifts and rest trims before the first lattice maneuver that moves; the
 lattice's maneuvers; the end after the last one), its path against the baseline's, and
@@ -57,6 +58,7 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import dataclasses
+import itertools
 import math
 import statistics
 import sys
@@ -297,10 +299,14 @@ def bench_baseline_jerk(
     planner: dict[str, Any],
     simulation: dict[str, Any] | None,
     scales: list[float],
+    gracenav: dict[str, Any] | None = None,
 ) -> None:
     """The decoupled baseline alone on the pairs at each jerk scale
     (``DecoupledOptions.jerk_scale``): its time against its jerk, to set beside
-    gracenav's palettes at the same lean, speed and torque limits."""
+    gracenav's palettes at the same lean, speed and torque limits. With ``gracenav``
+    (its row of the pairs' table) also the baseline's time at gracenav's median max
+    jerk and its jerk at gracenav's median time, each interpolated linearly between
+    the two scales around it (not printed outside the measured range)."""
     from gracenav.baseline import DecoupledOptions, motion_limits
     from gracenav.campaign.runner import trial_result
 
@@ -314,6 +320,7 @@ def bench_baseline_jerk(
         "  max lean (°)"
     )
     t0 = time.perf_counter()
+    points: list[tuple[float, float]] = []  # (median max jerk, median time) per scale
     for scale in scales:
         options = DecoupledOptions(jerk_scale=scale)
         limits = motion_limits(palette, options)
@@ -334,6 +341,35 @@ def bench_baseline_jerk(
             f"  {r['lean_max']:12.2f}",
             flush=True,
         )
+        points.append((r["max_jerk"], r["time"]))
+    if gracenav is None or len(points) < 2:
+        return
+    jerk, when = gracenav["max_jerk"], gracenav["time"]
+    at_jerk = _between(points, jerk)
+    at_time = _between([(t, j) for j, t in points], when)
+    print(
+        f"  at gracenav's median max jerk {jerk:.2f} m/s³ the baseline takes "
+        + (
+            f"{at_jerk:.2f} s (gracenav / baseline {when / at_jerk:.2f})"
+            if at_jerk is not None
+            else "(outside the measured scales)"
+        )
+        + f"; at gracenav's median time {when:.2f} s it jerks "
+        + (
+            f"{at_time:.2f} m/s³ (gracenav / baseline {jerk / at_time:.2f})"
+            if at_time is not None
+            else "(outside the measured scales)"
+        )
+    )
+
+
+def _between(points: list[tuple[float, float]], x: float) -> float | None:
+    """y at ``x``, linear between the two points around it in x (None outside)."""
+    pts = sorted(points)
+    for (x0, y0), (x1, y1) in itertools.pairwise(pts):
+        if x0 <= x <= x1:
+            return y0 if x1 == x0 else y0 + (x - x0) / (x1 - x0) * (y1 - y0)
+    return None
 
 
 def bench_pairs(
@@ -344,7 +380,7 @@ def bench_pairs(
     planner: dict[str, Any],
     breakdown: bool = False,
     simulation: dict[str, Any] | None = None,
-) -> None:
+) -> list[dict[str, Any]]:
     from gracenav.campaign.runner import trial_result
     from gracenav.model import physical_time_bound
 
@@ -380,6 +416,7 @@ def bench_pairs(
     if breakdown:
         print("  where the time goes (pairs both planners reached):")
         _print_breakdown(phases)
+    return rows
 
 
 def _lean_limits(palette: Any) -> tuple[float, float]:
@@ -469,13 +506,22 @@ def main() -> None:
         planner["online_ends"] = False
     if args.only in (None, "long"):
         bench_long(palette, lean, args.seed if args.seed is not None else 0, planner)
+    simulation = {"position_filter": False} if args.no_position_filter else {}
+    gracenav = None
     if args.only in (None, "pairs"):
-        simulation = {"position_filter": False} if args.no_position_filter else {}
-        bench_pairs(palette, args.trials, args.seed, lean, planner, args.breakdown, simulation)
+        rows = bench_pairs(
+            palette, args.trials, args.seed, lean, planner, args.breakdown, simulation
+        )
+        gracenav = rows[0]
     if args.baseline_jerk_scales:
-        simulation = {"position_filter": False} if args.no_position_filter else {}
         bench_baseline_jerk(
-            palette, args.trials, args.seed, planner, simulation, args.baseline_jerk_scales
+            palette,
+            args.trials,
+            args.seed,
+            planner,
+            simulation,
+            args.baseline_jerk_scales,
+            gracenav,
         )
 
 
