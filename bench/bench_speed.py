@@ -299,14 +299,16 @@ def bench_baseline_jerk(
     planner: dict[str, Any],
     simulation: dict[str, Any] | None,
     scales: list[float],
-    gracenav: dict[str, Any] | None = None,
+    gracenav: tuple[dict[str, Any], list[dict[str, Any]]] | None = None,
 ) -> None:
     """The decoupled baseline alone on the pairs at each jerk scale
     (``DecoupledOptions.jerk_scale``): its time against its jerk, to set beside
     gracenav's palettes at the same lean, speed and torque limits. With ``gracenav``
-    (its row of the pairs' table) also the baseline's time at gracenav's median max
-    jerk and its jerk at gracenav's median time, each interpolated linearly between
-    the two scales around it (not printed outside the measured range)."""
+    (its row of the pairs' table and its rows trial by trial) also, per scale, the
+    comparison pair by pair (:func:`_pair_by_pair`), and the baseline's time at
+    gracenav's median max jerk and its jerk at gracenav's median time, each
+    interpolated linearly between the two scales around it (not printed outside the
+    measured range)."""
     from gracenav.baseline import DecoupledOptions, motion_limits
     from gracenav.campaign.runner import trial_result
 
@@ -342,9 +344,11 @@ def bench_baseline_jerk(
             flush=True,
         )
         points.append((r["max_jerk"], r["time"]))
+        if gracenav is not None:
+            print("              " + _pair_by_pair(gracenav[1], rows), flush=True)
     if gracenav is None or len(points) < 2:
         return
-    jerk, when = gracenav["max_jerk"], gracenav["time"]
+    jerk, when = gracenav[0]["max_jerk"], gracenav[0]["time"]
     at_jerk = _between(points, jerk)
     at_time = _between([(t, j) for j, t in points], when)
     print(
@@ -360,6 +364,35 @@ def bench_baseline_jerk(
             if at_time is not None
             else "(outside the measured scales)"
         )
+    )
+
+
+def _pair_by_pair(gracenav: list[dict[str, Any]], decoupled: list[dict[str, Any]]) -> str:
+    """gracenav against the baseline on the pairs both reached: on how many gracenav is
+    faster and jerks less, the medians of the time and path ratios, the least-squares
+    slope and the correlation of the time difference on the path difference, and the
+    median time difference where the two paths agree within 0.1 m."""
+    both = [
+        (g, d)
+        for g, d in zip(gracenav, decoupled, strict=True)
+        if g.get("reached_goal") and d.get("reached_goal")
+    ]
+    if len(both) < 2:
+        return "pair by pair: fewer than 2 pairs both reached"
+    dt = np.array([g["time_s"] - d["time_s"] for g, d in both])
+    dp = np.array([g["path_length_m"] - d["path_length_m"] for g, d in both])
+    slope = float(np.polyfit(dp, dt, 1)[0]) if np.ptp(dp) > 0 else math.nan
+    corr = float(np.corrcoef(dp, dt)[0, 1]) if np.ptp(dp) > 0 and np.ptp(dt) > 0 else math.nan
+    same = dt[np.abs(dp) < 0.1]
+    return (
+        f"pair by pair ({len(both)}): gracenav faster on "
+        f"{sum(g['time_s'] < d['time_s'] for g, d in both)}, jerks less on "
+        f"{sum(g['max_jerk_mps3'] < d['max_jerk_mps3'] for g, d in both)}; median time "
+        f"ratio {_median([g['time_s'] / d['time_s'] for g, d in both]):.3f}, path ratio "
+        f"{_median([g['path_length_m'] / d['path_length_m'] for g, d in both]):.3f}; time "
+        f"difference {slope:.2f} s per m of path difference (correlation {corr:.2f}); "
+        f"paths within 0.1 m on {same.size}: median time difference "
+        f"{(float(np.median(same)) if same.size else math.nan):+.2f} s"
     )
 
 
@@ -380,7 +413,7 @@ def bench_pairs(
     planner: dict[str, Any],
     breakdown: bool = False,
     simulation: dict[str, Any] | None = None,
-) -> list[dict[str, Any]]:
+) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     from gracenav.campaign.runner import trial_result
     from gracenav.model import physical_time_bound
 
@@ -416,7 +449,7 @@ def bench_pairs(
     if breakdown:
         print("  where the time goes (pairs both planners reached):")
         _print_breakdown(phases)
-    return rows
+    return rows, by_planner["gracenav"]
 
 
 def _lean_limits(palette: Any) -> tuple[float, float]:
@@ -509,10 +542,10 @@ def main() -> None:
     simulation = {"position_filter": False} if args.no_position_filter else {}
     gracenav = None
     if args.only in (None, "pairs"):
-        rows = bench_pairs(
+        rows, trials = bench_pairs(
             palette, args.trials, args.seed, lean, planner, args.breakdown, simulation
         )
-        gracenav = rows[0]
+        gracenav = (rows[0], trials)
     if args.baseline_jerk_scales:
         bench_baseline_jerk(
             palette,
