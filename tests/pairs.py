@@ -39,3 +39,18 @@ def pairs_trial(
         online_starts=online_starts, online_ends=online_ends, position_filter=position_filter
     )
     return trial_result(campaign, index, "gracenav")
+
+
+def launch_without_fine_copies(monkeypatch: Any) -> None:
+    """Starts designed online launch onto no fine copy (``LaunchOptions(fine=False)``):
+    trial 19's start then keeps the capture regulator and its way ends through a
+    maneuver designed online, the mechanisms its tests look at (with fine copies it
+    launches onto one, and runs 0.52 s longer without an end designed online)."""
+    import functools
+
+    import gracenav.execution.controller as controller_module
+    from gracenav.execution.launch import LaunchOptions
+
+    monkeypatch.setattr(
+        controller_module, "LaunchOptions", functools.partial(LaunchOptions, fine=False)
+    )

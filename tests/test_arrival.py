@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from pairs import pairs_trial
+from pairs import launch_without_fine_copies, pairs_trial
 from reverify import assert_holds_from_unchosen_points
 
 from gracenav.execution import CAPTURE, TERMINAL, EventReason, ExecutionOptions
@@ -89,6 +89,7 @@ def test_an_end_on_the_lattice_takes_one_verified_maneuver_to_the_goal(
     the goal; with online ends one maneuver from the cruise before them runs straight to
     rest at the goal's rest trim, whose S holds its G; it holds again from points its
     verification did not choose, and the task ends 2.25 s sooner."""
+    launch_without_fine_copies(monkeypatch)
     row, result, arrival = _arrived_sooner(19, monkeypatch)
     assert row["time_s"] == pytest.approx(row["time_without_s"] - arrival.saving, abs=0.25)
     lib = result.library
@@ -145,6 +146,7 @@ def test_an_end_on_a_lazy_tree(monkeypatch: pytest.MonkeyPatch) -> None:
     import gracenav.planning.graph as graph_module
     from gracenav.planning import LazyPolicyTree
 
+    launch_without_fine_copies(monkeypatch)
     whole, res = pairs_trial(19, online_starts=True)
     made: list[LazyPolicyTree] = []
 
