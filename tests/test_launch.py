@@ -167,9 +167,10 @@ def test_a_start_is_priced_by_what_its_way_runs(monkeypatch: pytest.MonkeyPatch)
 
 @pytest.mark.slow
 def test_a_start_launches_onto_a_fine_copy_where_only_fine_copies_lie_ahead() -> None:
-    """Trial 0 of the random pairs starts at rest where every policy ahead on its way is a
-    fine copy (the room's obstacles leave the full-size ones no room there): the
-    maneuver from the start lands in a fine copy's smaller S (containment exact),
+    """Trial 0 of the random pairs starts at rest where no launch onto a full-size policy
+    ahead fits (each fails the size test even at S = G beside the room's obstacles, or
+    the still band's check), but one onto the fine copy of a lane change does: the
+    maneuver from the start lands in that fine copy's smaller S (containment exact),
     where without fine copies a capture regulator first crept 0.18 m to a rest trim
     (12.33 s in all); the task now ends at least 1 s sooner than without online starts,
     without recovery (measured 10.75 s)."""

@@ -73,10 +73,9 @@ class LaunchOptions:
         not only onto cruise trims.
     fine : bool
         Launch onto fine copies too (their smaller domains, where nothing else fits
-        near the start: the launch's G must then fit their smaller S). With the
-        position filter their smaller domains left no run of the 200 random pairs
-        (half with 5 mm of position noise) to a recovery, and the median time fell
-        from 10.56 to 10.06 s (``docs/design/speed.md``); False keeps to the others.
+        near the start: the launch's G must then fit their smaller S); False keeps
+        to the others. Measured under sensor noise with the position filter in
+        ``docs/design/speed.md`` (*Launches onto fine copies*).
     """
 
     ahead: tuple[float, float] = (0.3, 2.0)
