@@ -67,8 +67,12 @@ def controller() -> HybridController:
 
 def _run(hc: HybridController, skip: bool) -> Episode:
     x0 = state_from_position(np.array([*START, 0.0, 0.0]), hc.radius)
-    # The holds on the lattice's way to the terminal, not an end designed online.
-    options = ExecutionOptions(max_time=60.0, skip_holds=skip, online_ends=False)
+    # The holds after the start's capture and on the lattice's way to the terminal, not
+    # a start or an end designed online (a launch from this start takes the capture's
+    # place).
+    options = ExecutionOptions(
+        max_time=60.0, skip_holds=skip, online_starts=False, online_ends=False
+    )
     return hc.run(x0, [np.array([*GOAL, 0.0, 0.0])], options=options)
 
 
@@ -132,7 +136,9 @@ def test_a_settled_terminal_ends_the_task_without_changing_the_motion(
     late = hc.run(
         x0,
         [np.array([*GOAL, 0.0, 0.0])],
-        options=ExecutionOptions(max_time=60.0, settle_tolerance=1e-6, online_ends=False),
+        options=ExecutionOptions(
+            max_time=60.0, settle_tolerance=1e-6, online_starts=False, online_ends=False
+        ),
     )
     assert early.events[-1].to_policy == TERMINAL and late.events[-1].to_policy == TERMINAL
     n = early.states.shape[0]

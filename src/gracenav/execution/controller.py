@@ -42,7 +42,7 @@ from gracenav.execution.capture import (
 )
 from gracenav.execution.episode import Episode, ExecutionLog, drive
 from gracenav.execution.goals import ON_LATTICE, Goals
-from gracenav.execution.launch import LaunchOptions, launch_plan
+from gracenav.execution.launch import LaunchOptions, confirm_launch, launch_candidates
 from gracenav.execution.obstacles import ObstacleTracker
 from gracenav.execution.supervisor import BALANCING_MARGIN, Supervisor
 from gracenav.execution.types import (
@@ -335,7 +335,7 @@ class HybridController:
         skip_holds: bool,
     ) -> float | None:
         """What the start costs where a maneuver designed at the start
-        (:func:`gracenav.execution.launch.launch_plan`) may replace it: a capture or a
+        (:func:`gracenav.execution.launch.launch_candidates`) may replace it: a capture or a
         capture regulator, priced as it runs, or nothing (inf); None where it may not.
 
         The capture is priced as it runs: its plan's cost less, with ``skip_holds``, the
@@ -370,21 +370,22 @@ class HybridController:
                     budget -= catch.tail
         return budget
 
-    def _launch(
+    def _launches(
         self,
         x: FloatArray,
         tree: PolicyTree | LazyPolicyTree,
         budget: float,
         *,
         maneuvers: bool,
-    ) -> CapturePlan | None:
-        """The maneuver from the start (:func:`gracenav.execution.launch.launch_plan`)
-        onto a cruise trim, or with ``maneuvers`` onto any policy that starts at a
-        cruise state, priced below ``budget``; None where none is."""
+    ) -> tuple[CapturePlan, ...]:
+        """The maneuvers from the start (:func:`gracenav.execution.launch.launch_candidates`)
+        onto cruise trims, or with ``maneuvers`` onto any policy that starts at a cruise
+        state, priced below ``budget``, cheapest first; not yet verified from the still
+        band (:func:`~gracenav.execution.launch.confirm_launch`)."""
         lean = (float(np.hypot(*x[2:4])), float(np.hypot(*x[6:8])))
         p = position_state(x, self.radius)
         opts = LaunchOptions(maneuvers=maneuvers)
-        return launch_plan(self.library, p, lean, tree.cost_to_go, budget, opts)
+        return launch_candidates(self.library, p, lean, tree.cost_to_go, budget, opts)
 
     def _arrival(
         self,
@@ -550,8 +551,9 @@ class HybridController:
             if other is not None:
                 cand, tree, current, plan = other
                 goal_ids, terminals = [cand.approach], [cand]
-        # The ways to start: as found, or through a maneuver designed at the start onto
-        # a cruise trim, or onto any policy from a cruise state. Each is priced as it runs
+        # The ways to start: as found, or through any of the maneuvers designed at the
+        # start onto cruise trims or onto policies from a cruise state (the cheapest few
+        # by the tree's price, each a candidate). Each is priced as it runs
         # (its way from the first library policy, a lazy tree read along it, by the
         # durations that run, not as the tree prices it: fine copies at twice their
         # duration, holds in full), less what an end designed online saves on it; the
@@ -564,16 +566,20 @@ class HybridController:
         starts: list[tuple[float, CapturePlan | None, int]] = [
             (price if price is not None else 0.0, plan, current)
         ]
+        launched: dict[int, int] = {}  # starts designed online: row launched onto -> index
         if price is not None:
             for maneuvers in (True, False):
-                launched = self._launch(x, tree, price, maneuvers=maneuvers)
-                if launched is not None:
-                    starts.append((launched.cost, launched, CAPTURE))
+                for online in self._launches(x, tree, price, maneuvers=maneuvers):
+                    if online.rest_row not in launched:
+                        launched[online.rest_row] = len(starts)
+                        starts.append((online.cost, online, CAPTURE))
         ends = options.online_ends and dyn is None and len(goals) == 1 and loops == 1
         arrival = None
         if ends or len(starts) > 1:
-            best = math.inf
-            for cost, way_plan, way_current in starts:
+            # Each way priced as it runs, less what its end saves; the cheapest taken,
+            # a start designed online once it is verified from the still band too.
+            priced: list[tuple[float, int, ArrivalPlan | None]] = []
+            for k, (cost, way_plan, way_current) in enumerate(starts):
                 first = way_plan.rest_row if way_current == CAPTURE and way_plan else way_current
                 end = None
                 if first >= 0 and tree.reachable(first):
@@ -583,9 +589,15 @@ class HybridController:
                     if ends:
                         skip = options.skip_holds
                         end = self._arrival(goals[0], terminals[0], way, skip_holds=skip)
-                total = cost - (end.saving if end is not None else 0.0)
-                if total < best:
-                    best, plan, current, arrival = total, way_plan, way_current, end
+                priced.append((cost - (end.saving if end is not None else 0.0), k, end))
+            for _, k, end in sorted(priced, key=lambda c: (c[0], c[1])):
+                chosen, chosen_current = starts[k][1], starts[k][2]
+                if k in launched.values() and chosen is not None:
+                    chosen = confirm_launch(self.library, chosen)
+                    if chosen is None:
+                        continue
+                plan, current, arrival = chosen, chosen_current, end
+                break
         else:
             _, plan, current = min(starts, key=lambda s: s[0])
         if current < 0 and plan is None:

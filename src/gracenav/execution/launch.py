@@ -15,14 +15,18 @@ that verifies on the 3D model from points on the surface of S and passes the siz
 that the policy's S holds its G (exact ellipsoid containment, the prepares relation) and
 its swept D' grown by the footprint is clear of the map
 (:func:`gracenav.policies.size_policy`), then verified from the still band
-(:func:`gracenav.policies.catches.verify_still_start`). It is used only where S holds
-the start and its duration plus the policy's cost-to-go is below what the start costs
-otherwise (the hybrid controller then compares the ways to start by what they run). It
-runs as a capture whose last policy is followed by that policy (:class:`CapturePlan`).
+(:func:`gracenav.policies.catches.verify_still_start`). A maneuver is a candidate only
+where S holds the start and its duration plus the policy's cost-to-go is below what the
+start costs otherwise (:func:`launch_candidates`, the few cheapest by that price). The
+hybrid controller then prices every candidate by what its way runs, less what an end
+designed online saves on it (the tree's cost-to-go sees neither), and takes the
+cheapest whose check from the still band holds (:func:`confirm_launch`). It runs as a
+capture whose last policy is followed by that policy (:class:`CapturePlan`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import weakref
 from dataclasses import dataclass
@@ -39,13 +43,16 @@ from gracenav.policies.catches import verify_still_start
 if TYPE_CHECKING:
     from gracenav.library import PolicyLibrary
 
-__all__ = ["LaunchOptions", "launch_plan"]
+__all__ = ["LaunchOptions", "confirm_launch", "launch_candidates"]
 
 FloatArray = NDArray[np.float64]
 
 #: Plans remembered per library (by start, lean, budget, cost-to-go and options).
 _KEEP = 32
-_MADE: weakref.WeakKeyDictionary[PolicyLibrary, dict[bytes, CapturePlan | None]] = (
+_MADE: weakref.WeakKeyDictionary[PolicyLibrary, dict[bytes, tuple[CapturePlan, ...]]] = (
+    weakref.WeakKeyDictionary()
+)
+_CONFIRMED: weakref.WeakKeyDictionary[PolicyLibrary, dict[bytes, CapturePlan | None]] = (
     weakref.WeakKeyDictionary()
 )
 
@@ -57,16 +64,20 @@ class LaunchOptions:
     Parameters
     ----------
     ahead : (float, float)
-        Range (m) of the trim's start point ahead of the start, along the trim's
-        direction of travel.
+        Range (m) of the policy's start point ahead of the start, along its direction
+        of travel. Up to 3.5 m: a launch that joins the lattice farther along the way
+        cuts the corner its first maneuvers would turn (``docs/design/speed.md``,
+        *Launches that join the lattice farther along*).
     across : float
-        Largest distance (m) of the trim's start point across its direction of travel.
+        Largest distance (m) of the policy's start point across its direction of
+        travel.
     candidates : int
         Maneuvers whose S is verified at most, cheapest first by cost-to-go plus the
         shortest duration their kinematics allow (each a 3D plan and the sizing of S,
         its verifications; one whose size test fails even at S = G runs none and does
         not count; the still band's verification only for the one that would be
-        chosen).
+        chosen). All of them are candidates: the cheapest by the tree's price is not
+        always the cheapest way (its end may save less).
     maneuvers : bool
         Launch onto any library policy that starts at a cruise state (a trim, or a
         maneuver from one: a turn may reach the goal where the trim runs into a wall),
@@ -78,31 +89,37 @@ class LaunchOptions:
         ``docs/design/speed.md`` (*Launches onto fine copies*).
     """
 
-    ahead: tuple[float, float] = (0.3, 2.0)
-    across: float = 0.5
+    ahead: tuple[float, float] = (0.3, 3.5)
+    across: float = 1.2
     candidates: int = 4
     maneuvers: bool = True
     fine: bool = True
 
 
-def launch_plan(
+def launch_candidates(
     library: PolicyLibrary,
     state: FloatArray,
     lean: tuple[float, float],
     cost_to_go: FloatArray,
     budget: float,
     options: LaunchOptions | None = None,
-) -> CapturePlan | None:
-    """The cheapest verified maneuver from the start ``state`` (x, y, ẋ, ẏ, the ball's)
-    onto a library policy that starts at a cruise state (``options.maneuvers``; else a
-    cruise trim; a fine copy too unless ``options.fine`` is False), as a capture plan
-    priced below ``budget`` (s), or None.
+) -> tuple[CapturePlan, ...]:
+    """The maneuvers from the start ``state`` (x, y, ẋ, ẏ, the ball's) onto the library
+    policies ahead that start at a cruise state (``options.maneuvers``; else onto cruise
+    trims; fine copies too unless ``options.fine`` is False), cheapest first by their
+    duration plus the tree's cost-to-go (``cost_to_go``, by library row) of the policy
+    they launch onto, each priced below ``budget`` (s): at most ``options.candidates``
+    sized, each with an S verified on the 3D model that holds the start; none where the
+    measured lean and lean rate ``lean`` (norms, rad and rad/s) are outside the still
+    band a launch is verified from (``CatchOptions.still_lean``). Not yet verified from
+    the still band: :func:`confirm_launch` does that for the one a caller would take
+    (the costliest check). A caller that prices the ways on more than the tree's
+    cost-to-go (an end designed online saves more on one way than on another) compares
+    them all.
 
-    ``lean`` is the measured lean and lean rate (norms, rad and rad/s): a launch starts
-    only within the still band it is verified from (``CatchOptions.still_lean``).
-    ``cost_to_go`` is the tree's, by library row. The last few plans of each library
-    are remembered: a task that is checked first and then run (``run_scenario``)
-    designs its start once.
+    The last few lists of each library are remembered (by start, lean, budget,
+    cost-to-go and options): a task that is checked first and then run designs its
+    start once.
     """
     opts = options if options is not None else LaunchOptions()
     key = hashlib.sha1(
@@ -116,23 +133,44 @@ def launch_plan(
     if key not in known:
         if len(known) >= _KEEP:
             del known[next(iter(known))]
-        known[key] = _launch_plan(library, state, lean, cost_to_go, budget, opts)
+        known[key] = _launch_candidates(library, state, lean, cost_to_go, budget, opts)
     return known[key]
 
 
-def _launch_plan(
+def confirm_launch(library: PolicyLibrary, plan: CapturePlan) -> CapturePlan | None:
+    """``plan`` (one of :func:`launch_candidates`) with its maneuver verified from the
+    still band too (:func:`gracenav.policies.catches.verify_still_start`), or None where
+    that fails. Remembered per library, like the candidates."""
+    key = hashlib.sha1(
+        np.ascontiguousarray(plan.catch.start_xy, dtype=float).tobytes()
+        + repr((plan.rest_row, plan.cost, plan.catch.policy.duration)).encode()
+    ).digest()
+    known = _CONFIRMED.setdefault(library, {})
+    if key not in known:
+        if len(known) >= _KEEP:
+            del known[next(iter(known))]
+        policy = verify_still_start(plan.catch.policy, library.palette.options, placements=(0,))
+        known[key] = (
+            dataclasses.replace(plan, catch=PlacedPolicy(policy, 0.0, plan.catch.start_xy.copy()))
+            if policy.starts_from_still_band
+            else None
+        )
+    return known[key]
+
+
+def _launch_candidates(
     library: PolicyLibrary,
     state: FloatArray,
     lean: tuple[float, float],
     cost_to_go: FloatArray,
     budget: float,
     opts: LaunchOptions,
-) -> CapturePlan | None:
+) -> tuple[CapturePlan, ...]:
     palette = library.palette
     catch = palette.options.catch
     p = np.asarray(state, dtype=float).reshape(4)
     if catch is None or lean[0] > catch.still_lean[0] or lean[1] > catch.still_lean[1]:
-        return None
+        return ()
     start, zero = p[:2], np.zeros(2)
     if opts.maneuvers:
         # Every policy that starts at a cruise state: the trims and the maneuvers
@@ -152,10 +190,8 @@ def _launch_plan(
     ahead = np.sum(w * u, axis=1)
     across = u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]
     near = (ahead >= opts.ahead[0]) & (ahead <= opts.ahead[1]) & (np.abs(across) <= opts.across)
-    vopts = palette.options
-    # Each trim priced at its cost-to-go plus the shortest maneuver kinematics allow
-    # (a lower bound on the designed one's), cheapest first: the search stops at the
-    # first bound above the best found.
+    # Each policy priced at its cost-to-go plus the shortest maneuver kinematics allow
+    # (a lower bound on the designed one's), cheapest first, up to the budget.
     picks: list[tuple[float, int, float]] = []
     for row in rows[near].tolist():
         end, velocity = library.start_xy[row], library.start_state[row, 2:4]
@@ -166,16 +202,16 @@ def _launch_plan(
     picks.sort()
 
     sized: list[tuple[float, int, MotionPolicy]] = []
-    least, verified = budget, 0
-    for bound, row, least_time in picks:
-        if bound >= least or verified >= opts.candidates:
+    verified = 0
+    for _bound, row, least_time in picks:
+        if verified >= opts.candidates:
             break
         end, velocity = library.start_xy[row], library.start_state[row, 2:4]
         maneuver = design(start, end, zero, velocity, palette, least_time, name="launch")
         if maneuver is None:
             continue
         cost = maneuver.duration + float(cost_to_go[row])
-        if cost >= least:
+        if cost >= budget:
             continue
         policy = size_where_it_runs(library, maneuver, start, library.policy(row).start_domain)
         if policy.report is None:
@@ -186,11 +222,10 @@ def _launch_plan(
         if not PlacedPolicy(policy, 0.0, start).start_domain.contains(p):
             continue
         sized.append((cost, row, policy))
-        least = cost
-    # The costliest check, from the still band, for the cheapest first until one holds.
-    for cost, row, policy in sorted(sized, key=lambda c: c[0]):
-        policy = verify_still_start(policy, vopts, placements=(0,))
-        if policy.starts_from_still_band:
-            catch_at = PlacedPolicy(policy, 0.0, start.copy())
-            return CapturePlan(catch=catch_at, shifts=(), rest_row=row, cost=cost)
-    return None
+    sized.sort(key=lambda c: (c[0], c[1]))
+    return tuple(
+        CapturePlan(
+            catch=PlacedPolicy(policy, 0.0, start.copy()), shifts=(), rest_row=row, cost=cost
+        )
+        for cost, row, policy in sized
+    )
