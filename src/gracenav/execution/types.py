@@ -186,9 +186,10 @@ class ExecutionOptions:
         ahead that starts at a cruise state and take it where it is priced lower (by
         what each way runs, less what ``online_ends`` saves on it)
         (:mod:`gracenav.execution.launch`; a gracenav extension: such a start plans and
-        verifies up to four maneuvers on the 3D model, twice (onto cruise trims, and
-        onto any policy from a cruise state), each up to about 5 s of wall time, median
-        1.5 s, measured on the random pairs by ``bench/bench_starts.py``).
+        verifies up to four maneuvers on the 3D model in each of two searches (onto
+        cruise trims, and onto any policy from a cruise state), each search a median
+        2.4 s and up to about 6 s of wall time, then the chosen one from the still band,
+        about 1.2 s, measured on the random pairs by ``bench/bench_starts.py``).
     online_ends : bool
         For a single goal at rest on the lattice, design and verify one maneuver from
         the end of a moving policy on the tree's way straight to rest at the goal, and
