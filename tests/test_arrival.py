@@ -221,3 +221,45 @@ def test_an_end_saves_a_shift_terminals_shifts() -> None:
     assert ep.events[k + 1].to_policy == TERMINAL
     maneuver = arrival.plan.catch
     assert np.hypot(*(maneuver.start_xy + maneuver.primitive.displacement - goal)) <= 1e-9
+
+
+@pytest.mark.slow
+def test_an_end_longer_than_the_palettes_maneuvers(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Trial 25's way passes a cruise policy whose end lies farther from the goal than
+    a nonic from cruise to rest covers within the palette's 4.5 s. Kept to the palette's
+    longest maneuver, its end saves less; with the default
+    (:data:`gracenav.execution.online.LONGEST`, 6.5 s) one maneuver of more than 4.5 s
+    runs from there to rest at the goal, entered by a graceful switch, its S holding the
+    G of the policy it follows and its sweep clear; it holds again from points its
+    verification did not choose, and the task ends sooner by the difference of the
+    savings."""
+    import functools
+
+    import gracenav.execution.arrival as arrival_module
+    from gracenav.execution.arrival import ArrivalOptions
+
+    with monkeypatch.context() as m:
+        m.setattr(arrival_module, "ArrivalOptions", functools.partial(ArrivalOptions, longest=None))
+        short_row, short = pairs_trial(25, online_starts=True)
+    row, result = pairs_trial(25, online_starts=True)
+    assert row["reached_goal"] and short_row["reached_goal"]
+    assert row["min_clearance_m"] >= 0.0 and row["balancing_s"] == 0.0
+    arrival, before = result.episodes[0].arrival, short.episodes[0].arrival
+    assert arrival is not None
+    kept = before.saving if before is not None else 0.0
+    assert arrival.saving >= kept + 0.25
+    assert arrival.plan.catch.duration > short.library.palette.primitive_options.max_duration
+    assert row["time_s"] == pytest.approx(short_row["time_s"] - (arrival.saving - kept), abs=0.05)
+    _check_domains(result, arrival)
+    ep = result.episodes[0]
+    (k,) = [k for k, e in enumerate(ep.events) if k > 0 and e.to_policy == CAPTURE]
+    assert ep.events[k].reason is EventReason.GRACEFUL
+    assert ep.events[k - 1].to_policy == arrival.after
+    assert_holds_from_unchosen_points(
+        arrival.plan.catch.policy,
+        result.library.palette.options,
+        boundary_points=24,
+        interior=6,
+        seed=25,
+        placements=(0,),
+    )

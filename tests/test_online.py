@@ -4,6 +4,7 @@ rest onto a cruise state (online starts) and from cruise or rest to rest (online
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from gracenav.execution.online import design, shortest
 
@@ -85,3 +86,57 @@ def test_a_limited_palette_bounds_the_ball_jerk_of_what_is_designed_online(palet
     )
     assert shortest(ZERO, end, ZERO, velocity, limited) <= smooth.duration
     assert shortest(ZERO, end, ZERO, velocity, palette) <= fast.duration
+
+
+def _nonic_speeds(duration: float, v0: float, distance: float, v1: float) -> np.ndarray:
+    """Speeds along a line of the nonic from 0 at ``v0`` to ``distance`` at ``v1`` with
+    acceleration, jerk and snap zero at both ends, solved here from its ten boundary
+    conditions (not through :class:`~gracenav.primitives.references.NonicReference`)."""
+    from math import factorial
+
+    rows, rhs = [], []
+    for t, values in ((0.0, (0.0, v0, 0.0, 0.0, 0.0)), (duration, (distance, v1, 0.0, 0.0, 0.0))):
+        for der, value in enumerate(values):
+            rows.append(
+                [
+                    factorial(k) // factorial(k - der) * t ** (k - der) if k >= der else 0.0
+                    for k in range(10)
+                ]
+            )
+            rhs.append(value)
+    c = np.linalg.solve(np.array(rows, dtype=float), np.array(rhs))
+    t = np.linspace(0.0, duration, 4001)
+    return sum(k * c[k] * t ** (k - 1) for k in range(1, 10))
+
+
+@pytest.mark.parametrize("to_rest", [False, True], ids=["start", "end"])
+def test_an_online_maneuver_reaches_farther_only_by_lasting_longer(palette, to_rest) -> None:
+    """Between rest and the cruise along x, 2.5 m apart: no nonic within the palette's
+    4.5 s keeps within its 0.8 m/s (it covers at most about 2.05 m), one within 6.5 s
+    does (:data:`gracenav.execution.online.LONGEST`, the default of online starts and
+    ends). The shortest is the first duration on the grid whose speeds, from the nonic
+    solved independently, keep within the palette's speed and do not run backwards, and
+    the shape trajectory planner makes it feasible on the 3D model within the lean and
+    torque limits."""
+    from gracenav.execution.online import LONGEST
+
+    opts = palette.primitive_options
+    cruise, end = np.array([0.5, 0.0]), np.array([2.5, 0.0])
+    v0, v1 = (cruise, ZERO) if to_rest else (ZERO, cruise)
+    assert opts.max_duration == 4.5 and LONGEST == 6.5
+    assert shortest(ZERO, end, v0, v1, palette) == np.inf
+    assert design(ZERO, end, v0, v1, palette, 0.0, name="online") is None
+    least = shortest(ZERO, end, v0, v1, palette, LONGEST)
+    assert opts.max_duration < least <= LONGEST
+
+    def keeps(duration: float) -> bool:
+        speed = _nonic_speeds(duration, v0[0], end[0], v1[0])
+        return bool(speed.max() <= opts.max_speed and speed.min() >= -opts.max_backward_speed)
+
+    assert keeps(least) and not keeps(least - opts.duration_step)
+    made = design(ZERO, end, v0, v1, palette, least, name="online", longest=LONGEST)
+    assert made is not None and least <= made.duration <= LONGEST
+    assert np.allclose(made.displacement, end)
+    report = made.reports[0]
+    assert report.peak_lean <= opts.max_lean + 1e-12
+    assert report.peak_torque <= palette.params.torque_limit + 1e-9

@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gracenav.execution.capture import CapturePlan, PlacedPolicy
-from gracenav.execution.online import design, shortest, size_where_it_runs
+from gracenav.execution.online import LONGEST, design, shortest, size_where_it_runs
 from gracenav.execution.types import TERMINAL
 from gracenav.policies import PrimitiveKind
 
@@ -72,11 +72,17 @@ class ArrivalOptions:
         count).
     min_saving : float
         Smallest saving (s) for which a maneuver is designed.
+    longest : float or None
+        Longest maneuver (s) designed; None keeps to the palette's longest maneuver
+        (``PrimitiveSetOptions.max_duration``). A nonic from a cruise state to rest
+        reaches farther back only by lasting longer (``docs/design/speed.md``, *Online
+        maneuvers longer than the palette's*).
     """
 
-    reach: float = 2.5
+    reach: float = 3.0
     candidates: int = 4
     min_saving: float = 0.125
+    longest: float | None = LONGEST
 
 
 @dataclass(frozen=True)
@@ -192,7 +198,7 @@ def _arrival_plan(
             continue  # from the end of the stop before it instead
         if not _NEAR <= float(np.hypot(*(goal - end[:2]))) <= opts.reach:
             continue
-        least_time = shortest(end[:2], goal, end[2:], zero, palette)
+        least_time = shortest(end[:2], goal, end[2:], zero, palette, opts.longest)
         if after[k] - least_time >= opts.min_saving:
             picks.append((least_time - after[k], row, least_time, after[k]))
     picks.sort()
@@ -204,7 +210,9 @@ def _arrival_plan(
         if -bound <= saved or verified >= opts.candidates:
             break
         end = library.end_state[row]
-        maneuver = design(end[:2], goal, end[2:], zero, palette, least_time, name="arrival")
+        maneuver = design(
+            end[:2], goal, end[2:], zero, palette, least_time, name="arrival", longest=opts.longest
+        )
         if maneuver is None or rest_of_way - maneuver.duration <= saved:
             continue
         start = end[:2].copy()

@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gracenav.execution.capture import CapturePlan, PlacedPolicy
-from gracenav.execution.online import design, shortest, size_where_it_runs
+from gracenav.execution.online import LONGEST, design, shortest, size_where_it_runs
 from gracenav.policies import MotionPolicy, PrimitiveKind
 from gracenav.policies.catches import verify_still_start
 
@@ -87,6 +87,11 @@ class LaunchOptions:
         near the start: the launch's G must then fit their smaller S); False keeps
         to the others. Measured under sensor noise with the position filter in
         ``docs/design/speed.md`` (*Launches onto fine copies*).
+    longest : float or None
+        Longest launch (s) designed; None keeps to the palette's longest maneuver
+        (``PrimitiveSetOptions.max_duration``). A nonic from rest to a cruise state
+        reaches farther only by lasting longer (``docs/design/speed.md``, *Online
+        maneuvers longer than the palette's*).
     """
 
     ahead: tuple[float, float] = (0.3, 3.5)
@@ -94,6 +99,7 @@ class LaunchOptions:
     candidates: int = 4
     maneuvers: bool = True
     fine: bool = True
+    longest: float | None = LONGEST
 
 
 def launch_candidates(
@@ -195,7 +201,7 @@ def _launch_candidates(
     picks: list[tuple[float, int, float]] = []
     for row in rows[near].tolist():
         end, velocity = library.start_xy[row], library.start_state[row, 2:4]
-        least_time = shortest(start, end, zero, velocity, palette)
+        least_time = shortest(start, end, zero, velocity, palette, opts.longest)
         bound = least_time + float(cost_to_go[row])
         if bound < budget:
             picks.append((bound, int(row), least_time))
@@ -207,7 +213,9 @@ def _launch_candidates(
         if verified >= opts.candidates:
             break
         end, velocity = library.start_xy[row], library.start_state[row, 2:4]
-        maneuver = design(start, end, zero, velocity, palette, least_time, name="launch")
+        maneuver = design(
+            start, end, zero, velocity, palette, least_time, name="launch", longest=opts.longest
+        )
         if maneuver is None:
             continue
         cost = maneuver.duration + float(cost_to_go[row])

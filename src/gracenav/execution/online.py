@@ -34,13 +34,20 @@ if TYPE_CHECKING:
     from gracenav.params import BallbotParams
     from gracenav.policies.domains import EllipsoidalDomain
 
-__all__ = ["admissible", "design", "shortest", "size_where_it_runs"]
+__all__ = ["LONGEST", "admissible", "design", "shortest", "size_where_it_runs"]
 
 FloatArray = NDArray[np.float64]
 
 #: Shortest duration (s) designed: the shape trajectory planner's basis needs a few
 #: knots (at 0.25 s and below its linear system is singular or its ends are not trims).
 _SHORTEST = 0.5
+
+#: Longest maneuver (s) designed online by default
+#: (:attr:`~gracenav.execution.launch.LaunchOptions.longest`,
+#: :attr:`~gracenav.execution.arrival.ArrivalOptions.longest`): longer than the
+#: palette's 4.5 s, since a nonic between rest and cruise reaches farther only by lasting
+#: longer (2.05 m in 4.5 s, 2.95 m in 6.5 s within the palette's 0.8 m/s).
+LONGEST = 6.5
 
 #: Speed (m/s) below which an end is at rest (a stop's end velocity is about 1e-13 m/s).
 _MOVING = 1e-6
@@ -53,9 +60,11 @@ def admissible(
     options: PrimitiveSetOptions,
     shortest: float,
     params: BallbotParams,
+    longest: float | None = None,
 ) -> Iterator[tuple[float, NonicReference]]:
     """The nonics from the origin at velocity ``v0`` to displacement ``disp`` at velocity
-    ``v1`` on the duration grid from ``shortest`` (s, at least :data:`_SHORTEST`) on,
+    ``v1`` on the duration grid from ``shortest`` (s, at least :data:`_SHORTEST`) to
+    ``longest`` (s; None: ``options.max_duration``, the palette's longest maneuver),
     shortest first, that keep within ``options``' speed, do not run backwards
     (beyond ``options.max_backward_speed``) against the moving end's direction of travel (the
     end's, when both move; the displacement's, from rest to rest) and, when the palette's
@@ -67,7 +76,8 @@ def admissible(
     u = along / float(np.hypot(*along))
     step = options.duration_step
     first = max(1, math.ceil(max(shortest, _SHORTEST) / step - 1e-9))
-    for m in range(first, math.floor(options.max_duration / step + 1e-9) + 1):
+    last = options.max_duration if longest is None else longest
+    for m in range(first, math.floor(last / step + 1e-9) + 1):
         duration = m * step
         ref = NonicReference.between(duration, np.zeros(2), v0, disp, v1)
         t = np.linspace(0.0, duration, max(2, int(duration * 128) + 1))
@@ -87,13 +97,15 @@ def shortest(
     v0: FloatArray,
     v1: FloatArray,
     palette: Palette,
+    longest: float | None = None,
 ) -> float:
     """The shortest duration :func:`admissible` gives from ``start`` at ``v0`` to ``end``
-    at ``v1`` (inf if none within the palette's longest maneuver): a lower bound on
-    :func:`design`'s, from kinematics alone."""
+    at ``v1`` (inf if none up to ``longest``, s, by default the palette's longest
+    maneuver): a lower bound on :func:`design`'s, from kinematics alone."""
     disp = np.asarray(end, dtype=float) - start
     u0, u1 = np.asarray(v0, dtype=float), np.asarray(v1, dtype=float)
-    for duration, _ in admissible(disp, u0, u1, palette.primitive_options, 0.0, palette.params):
+    opts, params = palette.primitive_options, palette.params
+    for duration, _ in admissible(disp, u0, u1, opts, 0.0, params, longest):
         return duration
     return math.inf
 
@@ -107,15 +119,16 @@ def design(
     shortest: float,
     *,
     name: str,
+    longest: float | None = None,
 ) -> Maneuver | None:
     """The shortest nonic on the palette's duration grid, from ``shortest`` (s) on, from
     ``start`` at ``v0`` to ``end`` at ``v1`` that is feasible on the 3D model (None if
-    none is within the palette's longest maneuver)."""
+    none is up to ``longest``, s, by default the palette's longest maneuver)."""
     options = palette.primitive_options
     params = palette.params
     disp = np.asarray(end, dtype=float) - start
     v0, v1 = (np.asarray(v, dtype=float) for v in (v0, v1))
-    for duration, ref in admissible(disp, v0, v1, options, shortest, params):
+    for duration, ref in admissible(disp, v0, v1, options, shortest, params, longest):
         if not passes_screen(ref, params, options):
             continue  # the palette's screen: the 3D model only where it may pass
         res = plan_shape_trajectory(ref, params, model="3d", options=options.planner)
