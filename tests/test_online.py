@@ -140,3 +140,38 @@ def test_an_online_maneuver_reaches_farther_only_by_lasting_longer(palette, to_r
     report = made.reports[0]
     assert report.peak_lean <= opts.max_lean + 1e-12
     assert report.peak_torque <= palette.params.torque_limit + 1e-9
+
+
+def test_online_maneuvers_keep_below_the_design_push_floor_on_a_fast_palette() -> None:
+    """Above :data:`gracenav.library.push_fans.FAN_FLOOR` the library keeps its own
+    policies' room for the design push's catches; a maneuver designed online gets no such
+    check, so where the library keeps a design push it keeps within the floor: on the
+    speed palette (maneuvers up to 1.32 m/s) the shortest start from rest onto the
+    0.5 m/s cruise 2.5 m ahead within the floor keeps within 0.8 m/s on the nonic solved
+    independently, where the palette's speed allows a shorter, faster one;
+    without a design push the palette's speed applies, and a palette within the floor
+    (the default) is not changed."""
+    import types
+
+    from gracenav.execution.online import LONGEST, speed_limit
+    from gracenav.library.push_fans import FAN_FLOOR
+    from gracenav.palette import load_palette
+
+    fast = load_palette("speed")
+    default = load_palette()
+    assert fast.primitive_options.max_speed > FAN_FLOOR == 0.8
+    pushed = types.SimpleNamespace(palette=fast, design_push=8.0)
+    assert speed_limit(pushed) == FAN_FLOOR  # type: ignore[arg-type]
+    unpushed = types.SimpleNamespace(palette=fast, design_push=0.0)
+    assert speed_limit(unpushed) == fast.primitive_options.max_speed  # type: ignore[arg-type]
+    plain = types.SimpleNamespace(palette=default, design_push=8.0)
+    assert speed_limit(plain) == default.primitive_options.max_speed  # type: ignore[arg-type]
+
+    cruise, end = np.array([0.5, 0.0]), np.array([2.5, 0.0])
+    free = shortest(ZERO, end, ZERO, cruise, fast, LONGEST)
+    least = shortest(ZERO, end, ZERO, cruise, fast, LONGEST, FAN_FLOOR)
+    assert free < least <= LONGEST
+    assert _nonic_speeds(least, 0.0, end[0], cruise[0]).max() <= FAN_FLOOR
+    assert _nonic_speeds(free, 0.0, end[0], cruise[0]).max() > FAN_FLOOR
+    step = fast.primitive_options.duration_step
+    assert _nonic_speeds(least - step, 0.0, end[0], cruise[0]).max() > FAN_FLOOR

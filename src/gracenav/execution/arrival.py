@@ -36,7 +36,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gracenav.execution.capture import CapturePlan, PlacedPolicy
-from gracenav.execution.online import LONGEST, design, shortest, size_where_it_runs
+from gracenav.execution.online import (
+    LONGEST,
+    design,
+    shortest,
+    size_where_it_runs,
+    speed_limit,
+)
 from gracenav.execution.types import TERMINAL
 from gracenav.policies import PrimitiveKind
 
@@ -178,6 +184,7 @@ def _arrival_plan(
     if way.size < 2:
         return None
     palette = library.palette
+    fastest = speed_limit(library)
     last = int(way[-1])
     if library.policy(last).policy.primitive.kind is not PrimitiveKind.REST:
         return None
@@ -198,7 +205,7 @@ def _arrival_plan(
             continue  # from the end of the stop before it instead
         if not _NEAR <= float(np.hypot(*(goal - end[:2]))) <= opts.reach:
             continue
-        least_time = shortest(end[:2], goal, end[2:], zero, palette, opts.longest)
+        least_time = shortest(end[:2], goal, end[2:], zero, palette, opts.longest, fastest)
         if after[k] - least_time >= opts.min_saving:
             picks.append((least_time - after[k], row, least_time, after[k]))
     picks.sort()
@@ -211,7 +218,15 @@ def _arrival_plan(
             break
         end = library.end_state[row]
         maneuver = design(
-            end[:2], goal, end[2:], zero, palette, least_time, name="arrival", longest=opts.longest
+            end[:2],
+            goal,
+            end[2:],
+            zero,
+            palette,
+            least_time,
+            name="arrival",
+            longest=opts.longest,
+            max_speed=fastest,
         )
         if maneuver is None or rest_of_way - maneuver.duration <= saved:
             continue

@@ -36,7 +36,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gracenav.execution.capture import CapturePlan, PlacedPolicy
-from gracenav.execution.online import LONGEST, design, shortest, size_where_it_runs
+from gracenav.execution.online import (
+    LONGEST,
+    design,
+    shortest,
+    size_where_it_runs,
+    speed_limit,
+)
 from gracenav.policies import MotionPolicy, PrimitiveKind
 from gracenav.policies.catches import verify_still_start
 
@@ -173,6 +179,7 @@ def _launch_candidates(
     opts: LaunchOptions,
 ) -> tuple[CapturePlan, ...]:
     palette = library.palette
+    fastest = speed_limit(library)
     catch = palette.options.catch
     p = np.asarray(state, dtype=float).reshape(4)
     if catch is None or lean[0] > catch.still_lean[0] or lean[1] > catch.still_lean[1]:
@@ -201,7 +208,7 @@ def _launch_candidates(
     picks: list[tuple[float, int, float]] = []
     for row in rows[near].tolist():
         end, velocity = library.start_xy[row], library.start_state[row, 2:4]
-        least_time = shortest(start, end, zero, velocity, palette, opts.longest)
+        least_time = shortest(start, end, zero, velocity, palette, opts.longest, fastest)
         bound = least_time + float(cost_to_go[row])
         if bound < budget:
             picks.append((bound, int(row), least_time))
@@ -214,7 +221,15 @@ def _launch_candidates(
             break
         end, velocity = library.start_xy[row], library.start_state[row, 2:4]
         maneuver = design(
-            start, end, zero, velocity, palette, least_time, name="launch", longest=opts.longest
+            start,
+            end,
+            zero,
+            velocity,
+            palette,
+            least_time,
+            name="launch",
+            longest=opts.longest,
+            max_speed=fastest,
         )
         if maneuver is None:
             continue

@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gracenav.execution.capture import PlacedPolicy, capture_for
+from gracenav.library.push_fans import FAN_FLOOR
 from gracenav.policies import MotionPolicy, domain_shape, size_policy
 from gracenav.policies.catches import ball_jerk
 from gracenav.policies.primitive import SampledPrimitive
@@ -34,7 +35,7 @@ if TYPE_CHECKING:
     from gracenav.params import BallbotParams
     from gracenav.policies.domains import EllipsoidalDomain
 
-__all__ = ["LONGEST", "admissible", "design", "shortest", "size_where_it_runs"]
+__all__ = ["LONGEST", "admissible", "design", "shortest", "size_where_it_runs", "speed_limit"]
 
 FloatArray = NDArray[np.float64]
 
@@ -53,6 +54,17 @@ LONGEST = 6.5
 _MOVING = 1e-6
 
 
+def speed_limit(library: PolicyLibrary) -> float:
+    """Largest flat-output speed (m/s) of a maneuver designed online on ``library``: the
+    palette's, but at most :data:`~gracenav.library.push_fans.FAN_FLOOR` where the
+    library keeps room for a design push. Above that speed the library keeps its own
+    policies' room for the catches of the design push (their push fans); a maneuver
+    designed online gets no such check, so it keeps below it (a palette whose
+    references keep within 0.8 m/s, the default and the smooth one, is not changed)."""
+    speed = float(library.palette.primitive_options.max_speed)
+    return min(speed, FAN_FLOOR) if library.design_push > 0.0 else speed
+
+
 def admissible(
     disp: FloatArray,
     v0: FloatArray,
@@ -61,11 +73,13 @@ def admissible(
     shortest: float,
     params: BallbotParams,
     longest: float | None = None,
+    max_speed: float | None = None,
 ) -> Iterator[tuple[float, NonicReference]]:
     """The nonics from the origin at velocity ``v0`` to displacement ``disp`` at velocity
     ``v1`` on the duration grid from ``shortest`` (s, at least :data:`_SHORTEST`) to
     ``longest`` (s; None: ``options.max_duration``, the palette's longest maneuver),
-    shortest first, that keep within ``options``' speed, do not run backwards
+    shortest first, that keep within ``options``' speed (or ``max_speed``, m/s, where
+    lower), do not run backwards
     (beyond ``options.max_backward_speed``) against the moving end's direction of travel (the
     end's, when both move; the displacement's, from rest to rest) and, when the palette's
     maneuvers are limited references, keep the ball's jerk (of ``params``' linearised
@@ -77,12 +91,13 @@ def admissible(
     step = options.duration_step
     first = max(1, math.ceil(max(shortest, _SHORTEST) / step - 1e-9))
     last = options.max_duration if longest is None else longest
+    fastest = options.max_speed if max_speed is None else min(options.max_speed, max_speed)
     for m in range(first, math.floor(last / step + 1e-9) + 1):
         duration = m * step
         ref = NonicReference.between(duration, np.zeros(2), v0, disp, v1)
         t = np.linspace(0.0, duration, max(2, int(duration * 128) + 1))
         vel = ref.value(t, 1)
-        if np.max(np.hypot(vel[:, 0], vel[:, 1])) > options.max_speed * (1 + 1e-9):
+        if np.max(np.hypot(vel[:, 0], vel[:, 1])) > fastest * (1 + 1e-9):
             continue
         if np.min(vel @ u) < -options.max_backward_speed:
             continue
@@ -98,14 +113,16 @@ def shortest(
     v1: FloatArray,
     palette: Palette,
     longest: float | None = None,
+    max_speed: float | None = None,
 ) -> float:
     """The shortest duration :func:`admissible` gives from ``start`` at ``v0`` to ``end``
     at ``v1`` (inf if none up to ``longest``, s, by default the palette's longest
-    maneuver): a lower bound on :func:`design`'s, from kinematics alone."""
+    maneuver; within ``max_speed`` where given): a lower bound on :func:`design`'s, from
+    kinematics alone."""
     disp = np.asarray(end, dtype=float) - start
     u0, u1 = np.asarray(v0, dtype=float), np.asarray(v1, dtype=float)
     opts, params = palette.primitive_options, palette.params
-    for duration, _ in admissible(disp, u0, u1, opts, 0.0, params, longest):
+    for duration, _ in admissible(disp, u0, u1, opts, 0.0, params, longest, max_speed):
         return duration
     return math.inf
 
@@ -120,15 +137,17 @@ def design(
     *,
     name: str,
     longest: float | None = None,
+    max_speed: float | None = None,
 ) -> Maneuver | None:
     """The shortest nonic on the palette's duration grid, from ``shortest`` (s) on, from
     ``start`` at ``v0`` to ``end`` at ``v1`` that is feasible on the 3D model (None if
-    none is up to ``longest``, s, by default the palette's longest maneuver)."""
+    none is up to ``longest``, s, by default the palette's longest maneuver; within
+    ``max_speed`` where given)."""
     options = palette.primitive_options
     params = palette.params
     disp = np.asarray(end, dtype=float) - start
     v0, v1 = (np.asarray(v, dtype=float) for v in (v0, v1))
-    for duration, ref in admissible(disp, v0, v1, options, shortest, params, longest):
+    for duration, ref in admissible(disp, v0, v1, options, shortest, params, longest, max_speed):
         if not passes_screen(ref, params, options):
             continue  # the palette's screen: the 3D model only where it may pass
         res = plan_shape_trajectory(ref, params, model="3d", options=options.planner)

@@ -188,15 +188,15 @@ class ExecutionOptions:
         (:mod:`gracenav.execution.launch`; a gracenav extension: such a start plans and
         verifies up to four maneuvers on the 3D model in each of two searches (onto
         cruise trims, and onto any policy from a cruise state), each search a median
-        2.4 s and up to about 6 s of wall time, then the chosen one from the still band,
-        about 1.2 s, measured on the random pairs by ``bench/bench_starts.py``).
+        2.7 s and up to about 10 s of wall time, then the chosen one from the still
+        band, about 1.2 s, measured on the random pairs by ``bench/bench_starts.py``).
     online_ends : bool
         For a single goal at rest on the lattice, design and verify one maneuver from
         the end of a moving policy on the tree's way straight to rest at the goal, and
         take it when that policy ends where it is priced lower than the rest of the
         way (:mod:`gracenav.execution.arrival`; a gracenav extension: up to four
         maneuvers planned and verified on the 3D model for each way to start when the
-        task starts, median 0.57 s and at most 1.5 s each on the random pairs,
+        task starts, median 0.26 s and at most 1.6 s each on the random pairs,
         ``bench/bench_starts.py``).
     position_filter : bool
         Act on the ball position a steady-state Kalman filter estimates from the
