@@ -402,10 +402,39 @@ def test_the_smooth_palette_is_shipped_and_is_what_its_build_command_asks_for() 
     )
 
 
+def test_the_gentle_palette_is_shipped_and_is_what_its_build_command_asks_for() -> None:
+    """`--palette gentle` is the file `gracenav palette build --reference limited
+    --max-ball-jerk 3 --shift-max-ball-jerk 3` writes (its key is that of the command's
+    inputs); every policy it keeps passed verification; it has the default palette's 36
+    maneuvers, whose 3D plans keep the ball's jerk within 3 m/s³ to 1 % (measured:
+    2.96-3.02; the default's reach 6.88), in at most the nonics' total duration
+    (107.75 s against 109.125 s), each within 1.15 times its nonic's (measured: at most
+    1.125, the 2 s lane changes taking 2.25 s)."""
+    limits = PaletteLimits(reference="limited", max_ball_jerk=3.0, shift_max_ball_jerk=3.0)
+    pal = _shipped_as_built("gentle", limits)
+    default = load_palette()
+
+    def maneuvers(p: Palette) -> dict[str, SampledPrimitive]:
+        return {
+            q.primitive.name: q.primitive
+            for q in p.policies
+            if q.primitive.kind is PrimitiveKind.MANEUVER and not q.label and not q.capture
+        }
+
+    gentle, nonic = maneuvers(pal), maneuvers(default)
+    assert len(gentle) == 36 and set(gentle) == set(nonic)
+    jerks = [planned_jerk(p.position[:, 2:4], p.dt) for p in gentle.values()]
+    assert max(jerks) <= 3.0 * 1.01
+    assert max(planned_jerk(p.position[:, 2:4], p.dt) for p in nonic.values()) > 2 * 3.0
+    assert sum(p.duration for p in gentle.values()) <= sum(p.duration for p in nonic.values())
+    assert all(gentle[n].duration <= 1.15 * nonic[n].duration for n in gentle)
+    assert pal.key not in {load_palette(n).key for n in ("default", "speed", "smooth")}
+
+
 def test_shipped_palettes_by_name_and_files_of_those_names(monkeypatch, tmp_path) -> None:
     from gracenav.palette import SHIPPED_PALETTES, palette_file
 
-    assert set(SHIPPED_PALETTES) == {"default", "speed", "smooth"}
+    assert set(SHIPPED_PALETTES) == {"default", "speed", "smooth", "gentle"}
     assert load_palette("default").key == load_palette().key
     monkeypatch.setenv(PALETTE_ENV, "speed")
     assert load_palette().key == load_palette("speed").key
@@ -415,11 +444,11 @@ def test_shipped_palettes_by_name_and_files_of_those_names(monkeypatch, tmp_path
     assert palette_file("./speed") == Path("speed") != shipped_palette_path("speed")
     with pytest.raises(CacheError, match="cannot read palette file speed"):
         load_palette(Path("speed"))
-    with pytest.raises(CacheError, match="shipped: default, speed, smooth"):
+    with pytest.raises(CacheError, match="shipped: default, speed, smooth, gentle"):
         shipped_palette_path("fast")
 
 
-@pytest.mark.parametrize("name", ["default", "speed", "smooth"])
+@pytest.mark.parametrize("name", ["default", "speed", "smooth", "gentle"])
 def test_policies_that_start_at_rest_were_verified_from_the_still_band(name: str) -> None:
     """Every kept policy that starts at rest, other than the rest trims and the capture
     regulators, carries its verification from the corners of the still band at both

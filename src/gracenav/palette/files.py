@@ -43,15 +43,19 @@ PALETTE_ENV = "GRACENAV_PALETTE"
 #: The palettes shipped inside the package, by name: ``default`` (one cruise speed,
 #: 0.5 m/s; nonic references), used when no palette is asked for; ``speed`` (cruise
 #: levels 0.5, 1.0 and 1.2 m/s, limited references; built with ``gracenav palette build
-#: --reference limited --cruise-speeds 1.0 1.2``); and ``smooth`` (one cruise speed,
+#: --reference limited --cruise-speeds 1.0 1.2``); ``smooth`` (one cruise speed,
 #: limited references whose ball jerk stays within 2 m/s³, shifts too; built with
 #: ``gracenav palette build --reference limited --max-ball-jerk 2
-#: --shift-max-ball-jerk 2``). ``--palette NAME`` and ``$GRACENAV_PALETTE=NAME`` select
-#: one (:func:`palette_file`); a file of that name is ``./NAME``.
+#: --shift-max-ball-jerk 2``); and ``gentle`` (the same within 3 m/s³, where the
+#: limited references take as long as the nonics in all; built with ``gracenav palette
+#: build --reference limited --max-ball-jerk 3 --shift-max-ball-jerk 3``). ``--palette
+#: NAME`` and ``$GRACENAV_PALETTE=NAME`` select one (:func:`palette_file`); a file of
+#: that name is ``./NAME``.
 SHIPPED_PALETTES: dict[str, str] = {
     "default": "palette.npz",
     "speed": "palette-speed.npz",
     "smooth": "palette-smooth.npz",
+    "gentle": "palette-gentle.npz",
 }
 
 
