@@ -5,6 +5,7 @@ more time."""
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -36,16 +37,21 @@ def _room() -> dict[str, object]:
     }
 
 
+@functools.cache
+def _run(name: str) -> tuple[float, float, float, float]:
+    """Time (s), max and p95 jerk (m/s³) and largest lean (rad) of the room's task with
+    the shipped palette ``name``, which must reach the goal."""
+    result = run_scenario(parse_scenario(_room(), source="room"), palette=load_palette(name))
+    run, ep = result.runs[0], result.episodes[0]
+    assert run.reached_goal, (name, run.outcome)
+    lean = float(np.max(np.hypot(ep.lean[:, 0], ep.lean[:, 1])))
+    return run.time_s, run.max_jerk_mps3, run.p95_jerk_mps3, lean
+
+
 def test_the_smooth_palette_keeps_the_balls_jerk_near_its_bound() -> None:
     """Measured: max / p95 jerk 2.13 / 1.98 m/s³ in 13.62 s with the smooth palette,
     6.91 / 5.70 m/s³ in 12.50 s with the default; largest lean 4.34° and 4.42°."""
-    runs = {}
-    for name in ("smooth", "default"):
-        result = run_scenario(parse_scenario(_room(), source="room"), palette=load_palette(name))
-        run, ep = result.runs[0], result.episodes[0]
-        assert run.reached_goal, (name, run.outcome)
-        lean = float(np.max(np.hypot(ep.lean[:, 0], ep.lean[:, 1])))
-        runs[name] = (run.time_s, run.max_jerk_mps3, run.p95_jerk_mps3, lean)
+    runs = {name: _run(name) for name in ("smooth", "default")}
     t_smooth, jerk_smooth, p95_smooth, lean_smooth = runs["smooth"]
     t_fast, jerk_fast, p95_fast, _ = runs["default"]
     assert jerk_smooth <= 2.0 * 1.25
@@ -58,13 +64,7 @@ def test_the_gentle_palette_halves_the_jerk_for_about_the_same_time() -> None:
     """Measured: max / p95 jerk 3.04 / 2.97 m/s³ in 12.75 s with the gentle palette
     (limited references within 3 m/s³, as long in all as the nonics), 6.91 / 5.70 m/s³
     in 12.50 s with the default; largest lean 4.20° and 4.42°."""
-    runs = {}
-    for name in ("gentle", "default"):
-        result = run_scenario(parse_scenario(_room(), source="room"), palette=load_palette(name))
-        run, ep = result.runs[0], result.episodes[0]
-        assert run.reached_goal, (name, run.outcome)
-        lean = float(np.max(np.hypot(ep.lean[:, 0], ep.lean[:, 1])))
-        runs[name] = (run.time_s, run.max_jerk_mps3, run.p95_jerk_mps3, lean)
+    runs = {name: _run(name) for name in ("gentle", "default")}
     t_gentle, jerk_gentle, p95_gentle, lean_gentle = runs["gentle"]
     t_fast, jerk_fast, p95_fast, _ = runs["default"]
     assert jerk_gentle <= 3.0 * 1.1
