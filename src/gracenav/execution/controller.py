@@ -32,7 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from gracenav.control import CONTROL_RATE, PositionEstimator, TrackingLaw
 from gracenav.errors import ConfigError, PlanningError
-from gracenav.execution.arrival import ArrivalPlan, arrival_plan, way_time
+from gracenav.execution.arrival import ArrivalPlan, arrival_plan, run_to_go, way_time
 from gracenav.execution.capture import (
     CapturePlan,
     PlacedPolicy,
@@ -377,15 +377,19 @@ class HybridController:
         budget: float,
         *,
         maneuvers: bool,
+        run: FloatArray,
     ) -> tuple[CapturePlan, ...]:
         """The maneuvers from the start (:func:`gracenav.execution.launch.launch_candidates`)
         onto cruise trims, or with ``maneuvers`` onto any policy that starts at a cruise
-        state, priced below ``budget``, cheapest first; not yet verified from the still
-        band (:func:`~gracenav.execution.launch.confirm_launch`)."""
+        state, priced below ``budget``, sized in the order of what their ways ``run``
+        (:func:`gracenav.execution.arrival.run_to_go`), cheapest first; not yet verified
+        from the still band (:func:`~gracenav.execution.launch.confirm_launch`)."""
         lean = (float(np.hypot(*x[2:4])), float(np.hypot(*x[6:8])))
         p = position_state(x, self.radius)
         opts = LaunchOptions(maneuvers=maneuvers)
-        return launch_candidates(self.library, p, lean, tree.cost_to_go, budget, opts)
+        return launch_candidates(
+            self.library, p, lean, tree.cost_to_go, budget, opts, run_to_go=run
+        )
 
     def _arrival(
         self,
@@ -552,8 +556,8 @@ class HybridController:
                 cand, tree, current, plan = other
                 goal_ids, terminals = [cand.approach], [cand]
         # The ways to start: as found, or through any of the maneuvers designed at the
-        # start onto cruise trims or onto policies from a cruise state (the cheapest few
-        # by the tree's price, each a candidate). Each is priced as it runs
+        # start onto cruise trims or onto policies from a cruise state (the few whose
+        # ways run soonest, each a candidate). Each is priced as it runs
         # (its way from the first library policy, a lazy tree read along it, by the
         # durations that run, not as the tree prices it: fine copies at twice their
         # duration, holds in full), less what an end designed online saves on it; the
@@ -568,8 +572,11 @@ class HybridController:
         ]
         launched: dict[int, int] = {}  # starts designed online: row launched onto -> index
         if price is not None:
+            ways_run = run_to_go(
+                self.library, tree.next_policy, tree.cost_to_go, skip_holds=options.skip_holds
+            )
             for maneuvers in (True, False):
-                for online in self._launches(x, tree, price, maneuvers=maneuvers):
+                for online in self._launches(x, tree, price, maneuvers=maneuvers, run=ways_run):
                     if online.rest_row not in launched:
                         launched[online.rest_row] = len(starts)
                         starts.append((online.cost, online, CAPTURE))

@@ -17,7 +17,7 @@ its swept D' grown by the footprint is clear of the map
 (:func:`gracenav.policies.size_policy`), then verified from the still band
 (:func:`gracenav.policies.catches.verify_still_start`). A maneuver is a candidate only
 where S holds the start and its duration plus the policy's cost-to-go is below what the
-start costs otherwise (:func:`launch_candidates`, the few cheapest by that price). The
+start costs otherwise (:func:`launch_candidates`, the few whose ways run soonest). The
 hybrid controller then prices every candidate by what its way runs, less what an end
 designed online saves on it (the tree's cost-to-go sees neither), and takes the
 cheapest whose check from the still band holds (:func:`confirm_launch`). It runs as a
@@ -78,12 +78,13 @@ class LaunchOptions:
         Largest distance (m) of the policy's start point across its direction of
         travel.
     candidates : int
-        Maneuvers whose S is verified at most, cheapest first by cost-to-go plus the
-        shortest duration their kinematics allow (each a 3D plan and the sizing of S,
-        its verifications; one whose size test fails even at S = G runs none and does
-        not count; the still band's verification only for the one that would be
-        chosen). All of them are candidates: the cheapest by the tree's price is not
-        always the cheapest way (its end may save less).
+        Maneuvers whose S is verified at most, cheapest first by what the way runs from
+        the policy launched onto (or its cost-to-go) plus the shortest duration their
+        kinematics allow (each a 3D plan and the sizing of S, its verifications; one
+        whose size test fails even at S = G runs none and does not count; the still
+        band's verification only for the one that would be chosen). All of them are
+        candidates: the way that runs soonest is not always the cheapest (its end may
+        save less).
     maneuvers : bool
         Launch onto any library policy that starts at a cruise state (a trim, or a
         maneuver from one: a turn may reach the goal where the trim runs into a wall),
@@ -115,6 +116,8 @@ def launch_candidates(
     cost_to_go: FloatArray,
     budget: float,
     options: LaunchOptions | None = None,
+    *,
+    run_to_go: FloatArray | None = None,
 ) -> tuple[CapturePlan, ...]:
     """The maneuvers from the start ``state`` (x, y, ẋ, ẏ, the ball's) onto the library
     policies ahead that start at a cruise state (``options.maneuvers``; else onto cruise
@@ -127,7 +130,12 @@ def launch_candidates(
     the still band: :func:`confirm_launch` does that for the one a caller would take
     (the costliest check). A caller that prices the ways on more than the tree's
     cost-to-go (an end designed online saves more on one way than on another) compares
-    them all.
+    them all. Given ``run_to_go`` (by library row, what the way from each runs:
+    :func:`gracenav.execution.arrival.run_to_go`), the policies are sized in the order
+    of their shortest maneuver plus that instead: the tree prices a fine copy at twice
+    its duration and every hold in full, so its cheapest few are not always the ways
+    that run soonest (``docs/design/speed.md``, *Launches sized by what their ways
+    run*). The budget and the plans' costs stay the tree's price.
 
     The last few lists of each library are remembered (by start, lean, budget,
     cost-to-go and options): a task that is checked first and then run designs its
@@ -139,13 +147,15 @@ def launch_candidates(
             np.ascontiguousarray(a, dtype=float).tobytes()
             for a in (state, lean, (budget,), cost_to_go)
         )
+        + (b"" if run_to_go is None else np.ascontiguousarray(run_to_go, dtype=float).tobytes())
         + repr(opts).encode()
     ).digest()
     known = _MADE.setdefault(library, {})
     if key not in known:
         if len(known) >= _KEEP:
             del known[next(iter(known))]
-        known[key] = _launch_candidates(library, state, lean, cost_to_go, budget, opts)
+        rank = cost_to_go if run_to_go is None else np.asarray(run_to_go, dtype=float)
+        known[key] = _launch_candidates(library, state, lean, cost_to_go, rank, budget, opts)
     return known[key]
 
 
@@ -175,6 +185,7 @@ def _launch_candidates(
     state: FloatArray,
     lean: tuple[float, float],
     cost_to_go: FloatArray,
+    rank: FloatArray,
     budget: float,
     opts: LaunchOptions,
 ) -> tuple[CapturePlan, ...]:
@@ -204,14 +215,14 @@ def _launch_candidates(
     across = u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]
     near = (ahead >= opts.ahead[0]) & (ahead <= opts.ahead[1]) & (np.abs(across) <= opts.across)
     # Each policy priced at its cost-to-go plus the shortest maneuver kinematics allow
-    # (a lower bound on the designed one's), cheapest first, up to the budget.
+    # (a lower bound on the designed one's), up to the budget; sized cheapest first by
+    # ``rank`` (the cost-to-go, or what the way runs) plus that shortest maneuver.
     picks: list[tuple[float, int, float]] = []
     for row in rows[near].tolist():
         end, velocity = library.start_xy[row], library.start_state[row, 2:4]
         least_time = shortest(start, end, zero, velocity, palette, opts.longest, fastest)
-        bound = least_time + float(cost_to_go[row])
-        if bound < budget:
-            picks.append((bound, int(row), least_time))
+        if least_time + float(cost_to_go[row]) < budget:
+            picks.append((least_time + float(rank[row]), int(row), least_time))
     picks.sort()
 
     sized: list[tuple[float, int, MotionPolicy]] = []
