@@ -179,10 +179,7 @@ def run_to_go(
     the sums agree with :func:`way_time` to rounding.
     """
     n = len(library)
-    run_by_type = np.array(
-        [0.0 if skip_holds and _is_hold(pol) else pol.duration for pol in library.palette.policies],
-        dtype=float,
-    )
+    run_by_type = _run_by_palette_policy(library, skip_holds)
     rows = np.flatnonzero(np.isfinite(cost_to_go))
     total = np.full(n, np.inf)
     if rows.size == 0:
@@ -206,19 +203,24 @@ def run_to_go(
     return total
 
 
-def _is_hold(pol: MotionPolicy) -> bool:
-    """Whether ``pol`` is a rest trim that skipping holds leaves out."""
-    return pol.primitive.kind is PrimitiveKind.REST and not pol.capture
+def _run_by_palette_policy(library: PolicyLibrary, skip_holds: bool) -> FloatArray:
+    """What each palette policy runs (s): its duration, or with ``skip_holds`` none for
+    a rest trim (the policy after it starts as soon as its S holds the state); a
+    capture regulator in full."""
+
+    def hold(pol: MotionPolicy) -> bool:
+        return pol.primitive.kind is PrimitiveKind.REST and not pol.capture
+
+    return np.array(
+        [0.0 if skip_holds and hold(pol) else pol.duration for pol in library.palette.policies],
+        dtype=float,
+    )
 
 
 def _run_times(library: PolicyLibrary, way: NDArray[np.int64], skip_holds: bool) -> FloatArray:
-    return np.array(
-        [
-            0.0 if skip_holds and _is_hold(library.policy(r).policy) else library.policy(r).duration
-            for r in way[:-1].tolist()
-        ],
-        dtype=float,
-    )
+    """What each library row of ``way`` runs, up to, not including, the last."""
+    out: FloatArray = _run_by_palette_policy(library, skip_holds)[library.palette_index[way[:-1]]]
+    return out
 
 
 def _arrival_plan(
