@@ -32,13 +32,22 @@ def pairs_campaign(
 
 
 def pairs_trial(
-    index: int, *, online_starts: bool, online_ends: bool = True, position_filter: bool = True
+    index: int,
+    *,
+    online_starts: bool,
+    online_ends: bool = True,
+    position_filter: bool = True,
+    palette: str | None = None,
 ) -> tuple[dict[str, Any], Any]:
-    """gracenav's result row and run of trial ``index`` (:func:`trial_result`)."""
+    """gracenav's result row and run of trial ``index`` (:func:`trial_result`), on the
+    shipped palette named ``palette`` (default: the default palette)."""
+    from gracenav.palette import load_palette
+
     campaign = pairs_campaign(
         online_starts=online_starts, online_ends=online_ends, position_filter=position_filter
     )
-    return trial_result(campaign, index, "gracenav")
+    pal = load_palette(palette) if palette is not None else None
+    return trial_result(campaign, index, "gracenav", palette=pal)
 
 
 def launch_without_fine_copies(monkeypatch: Any) -> None:

@@ -18,13 +18,14 @@ def test_online_starts_are_on_by_default() -> None:
     assert ExecutionOptions().online_starts is True
 
 
-def _launched_sooner(trial: int):  # type: ignore[no-untyped-def]
-    """Trial ``trial`` of the random pairs with online starts and without: both reach
-    the goal, with them without contact or balancing and at least 1 s sooner, starting
-    with a maneuver designed at the start (a capture at t = 0 onto no shift). Returns
-    the row and the run with them, and that capture plan."""
-    row0, _ = pairs_trial(trial, online_starts=False)
-    row, result = pairs_trial(trial, online_starts=True)
+def _launched_sooner(trial: int, palette: str | None = None):  # type: ignore[no-untyped-def]
+    """Trial ``trial`` of the random pairs with online starts and without (on the shipped
+    palette ``palette``, default the default): both reach the goal, with them without
+    contact or balancing and at least 1 s sooner, starting with a maneuver designed at
+    the start (a capture at t = 0 onto no shift). Returns the row and the run with
+    them, and that capture plan."""
+    row0, _ = pairs_trial(trial, online_starts=False, palette=palette)
+    row, result = pairs_trial(trial, online_starts=True, palette=palette)
     assert row0["reached_goal"] and row["reached_goal"]
     assert row["min_clearance_m"] >= 0.0 and row["balancing_s"] == 0.0
     assert row["time_s"] <= row0["time_s"] - 1.0
@@ -149,33 +150,33 @@ def test_a_start_designed_online_holds_under_sensor_noise(trial) -> None:
 
 @pytest.mark.slow
 def test_a_start_launches_onto_a_turn_where_the_cruise_trims_lead_nowhere() -> None:
-    """Trial 14 of the random pairs starts in a capture regulator's S only; every cruise
-    trim ahead of it runs into a dead end (no way to the goal) or lies too close to
-    reach, so online starts onto cruise trims alone leave the regulator. A maneuver
-    onto the turn that starts at one of those cruise states reaches the goal 2.8 s
-    sooner, and its S holds the maneuver's G."""
-    row, result, plan = _launched_sooner(14)
+    """Trial 14 of the random pairs (the nonic palette) starts in a capture regulator's
+    S only; every cruise trim ahead of it runs into a dead end (no way to the goal) or
+    lies too close to reach, so online starts onto cruise trims alone leave the
+    regulator. A maneuver onto the turn that starts at one of those cruise states
+    reaches the goal 2.8 s sooner, and its S holds the maneuver's G."""
+    row, result, plan = _launched_sooner(14, "nonic")
     lib = result.library
     after = lib.policy(plan.rest_row)
     assert after.policy.primitive.kind is PrimitiveKind.MANEUVER
     assert np.hypot(*lib.start_state[plan.rest_row, 2:]) == pytest.approx(0.5, abs=1e-3)
     assert after.start_domain.contains_domain(plan.catch.goal_domain)
-    row0, _ = pairs_trial(14, online_starts=False)
+    row0, _ = pairs_trial(14, online_starts=False, palette="nonic")
     assert row["time_s"] <= row0["time_s"] - 2.5
 
 
 @pytest.mark.slow
 def test_a_start_is_priced_by_what_its_way_runs(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Trial 19 of the random pairs: by the tree's prices, a maneuver from the start onto
-    a turn (20.9 s) beats the capture regulator that holds the start (24.75 s), but the
-    regulator's way runs through fine copies, which the tree prices at twice their
-    duration; priced by what each way runs (and what an end designed online saves on
-    it), the regulator is kept, and the task runs as without online starts (the
-    maneuver's way ran 4.4 s longer). Launches onto fine copies are left out here: with
-    them one onto a fine copy is taken (the next test)."""
+    """Trial 19 of the random pairs (the nonic palette): by the tree's prices, a
+    maneuver from the start onto a turn (20.9 s) beats the capture regulator that holds
+    the start (24.75 s), but the regulator's way runs through fine copies, which the
+    tree prices at twice their duration; priced by what each way runs (and what an end
+    designed online saves on it), the regulator is kept, and the task runs as without
+    online starts (the maneuver's way ran 4.4 s longer). Launches onto fine copies are
+    left out here: with them one onto a fine copy is taken (the next test)."""
     launch_without_fine_copies(monkeypatch)
-    row0, _ = pairs_trial(19, online_starts=False)
-    row, res = pairs_trial(19, online_starts=True)
+    row0, _ = pairs_trial(19, online_starts=False, palette="nonic")
+    row, res = pairs_trial(19, online_starts=True, palette="nonic")
     assert row0["reached_goal"] and row["reached_goal"]
     first = res.episodes[0].events[0].to_policy
     assert first >= 0 and res.library.policy(first).policy.capture
@@ -205,14 +206,14 @@ def test_a_start_launches_onto_a_fine_copy_where_only_fine_copies_lie_ahead() ->
 def test_each_start_designed_online_is_priced_with_the_end_its_way_allows(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    """Trial 19 of the random pairs: two launches from the start tie on the tree's price
-    (their duration plus the cost-to-go of the turn each lands on, 20.625 s), but one's
-    way ends through a maneuver designed online that saves more than the other's. Every
-    verified launch is priced by what its way runs less what its end saves, and that one
-    is taken: the task ends without recovery in at most 12 s (measured 11.25 s), more
-    than 2 s sooner than through the other (13.50 s; 15.12 s with the ends held to the
-    palette's 4.5 s, when no end shortened that way; the launch taken when only the
-    cheapest by the tree's price was priced)."""
+    """Trial 19 of the random pairs (the nonic palette): two launches from the start tie
+    on the tree's price (their duration plus the cost-to-go of the turn each lands on,
+    20.625 s), but one's way ends through a maneuver designed online that saves more
+    than the other's. Every verified launch is priced by what its way runs less what its
+    end saves, and that one is taken: the task ends without recovery in at most 12 s
+    (measured 11.25 s), more than 2 s sooner than through the other (13.50 s; 15.12 s
+    with the ends held to the palette's 4.5 s, when no end shortened that way; the
+    launch taken when only the cheapest by the tree's price was priced)."""
     import gracenav.execution.controller as controller_module
     from gracenav.execution.launch import launch_candidates
 
@@ -225,7 +226,7 @@ def test_each_start_designed_online_is_priced_with_the_end_its_way_allows(
 
     with monkeypatch.context() as m:
         m.setattr(controller_module, "launch_candidates", recording)
-        row, res = pairs_trial(19, online_starts=True)
+        row, res = pairs_trial(19, online_starts=True, palette="nonic")
     assert row["reached_goal"] and row["verified_recoveries"] == 0
     (t0, plan), *_ = res.episodes[0].captures
     assert t0 == 0.0 and plan.catch.policy.name == "launch"
@@ -238,7 +239,7 @@ def test_each_start_designed_online_is_priced_with_the_end_its_way_allows(
         return tuple(c for c in launch_candidates(*args, **kwargs) if c.rest_row == other)
 
     monkeypatch.setattr(controller_module, "launch_candidates", the_other)
-    row1, res1 = pairs_trial(19, online_starts=True)
+    row1, res1 = pairs_trial(19, online_starts=True, palette="nonic")
     assert row1["reached_goal"] and res1.episodes[0].captures[0][1].rest_row == other
     assert row["time_s"] <= 12.0
     assert row["time_s"] <= row1["time_s"] - 2.0
@@ -248,13 +249,13 @@ def test_each_start_designed_online_is_priced_with_the_end_its_way_allows(
 def test_a_start_launched_longer_than_the_palettes_maneuvers(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    """Trial 170 of the random pairs: a launch onto a policy farther ahead than a nonic
-    from rest to cruise covers within the palette's 4.5 s is cheaper than every launch
-    within it. With the default (:data:`gracenav.execution.online.LONGEST`, 6.5 s) it
-    is designed (5.5 s), verified on the 3D model in the frame it runs in and from the
-    still band, and taken; it holds again from points its verification did not choose,
-    and the task ends sooner than with launches kept to the palette's longest maneuver
-    (measured 12.41 → 11.25 s)."""
+    """Trial 170 of the random pairs (the nonic palette): a launch onto a policy farther
+    ahead than a nonic from rest to cruise covers within the palette's 4.5 s is cheaper
+    than every launch within it. With the default
+    (:data:`gracenav.execution.online.LONGEST`, 6.5 s) it is designed (5.5 s), verified
+    on the 3D model in the frame it runs in and from the still band, and taken; it holds
+    again from points its verification did not choose, and the task ends sooner than
+    with launches kept to the palette's longest maneuver (measured 12.41 → 11.25 s)."""
     import functools
 
     import gracenav.execution.controller as controller_module
@@ -264,8 +265,8 @@ def test_a_start_launched_longer_than_the_palettes_maneuvers(
         m.setattr(
             controller_module, "LaunchOptions", functools.partial(LaunchOptions, longest=None)
         )
-        short_row, short = pairs_trial(170, online_starts=True)
-    row, result = pairs_trial(170, online_starts=True)
+        short_row, short = pairs_trial(170, online_starts=True, palette="nonic")
+    row, result = pairs_trial(170, online_starts=True, palette="nonic")
     assert row["reached_goal"] and short_row["reached_goal"]
     assert row["min_clearance_m"] >= 0.0 and row["balancing_s"] == 0.0
     assert row["verified_recoveries"] == 0
@@ -328,26 +329,27 @@ def test_what_each_way_runs_is_summed_along_the_tree(fig5_library, fig5_graph) -
 
 @pytest.mark.slow
 def test_launches_are_sized_in_the_order_their_ways_run(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Trial 122 of the random pairs: the maneuver from the start that makes the task
+    """Trial 87 of the random pairs: the maneuver from the start that makes the task
     soonest launches onto a way the tree prices above four others (it is not among the
-    first few sized when they are taken by the tree's price). Sized in the order of
-    what their ways run, it is found, and the task ends more than 1 s sooner (measured
-    9.00 → 7.87 s), without recovery."""
+    first few sized when they are taken by the tree's price: then the robot goes west
+    and around, a way twice as long). Sized in the order of what their ways run, it is
+    found, and the task ends more than 5 s sooner (measured 15.62 → 9.75 s), without
+    recovery. (On the nonic palette trial 122 shows the same, 9.00 → 7.87 s.)"""
     import gracenav.execution.controller as controller_module
 
-    row, res = pairs_trial(122, online_starts=True)
+    row, res = pairs_trial(87, online_starts=True)
     with monkeypatch.context() as m:
         m.setattr(
             controller_module,
             "run_to_go",
             lambda library, next_policy, cost_to_go, **_: np.asarray(cost_to_go, dtype=float),
         )
-        row0, res0 = pairs_trial(122, online_starts=True)
+        row0, res0 = pairs_trial(87, online_starts=True)
     assert row0["reached_goal"] and row["reached_goal"]
     (_, plan0), *_ = res0.episodes[0].captures
     (_, plan), *_ = res.episodes[0].captures
     assert plan0.catch.policy.name == "launch" and plan.catch.policy.name == "launch"
     # Priced higher by the tree, yet it runs sooner.
     assert plan.rest_row != plan0.rest_row and plan.cost > plan0.cost
-    assert row["time_s"] <= row0["time_s"] - 1.0
+    assert row["time_s"] <= row0["time_s"] - 5.0
     assert row["verified_recoveries"] == 0 and row["min_clearance_m"] >= 0.0

@@ -127,7 +127,14 @@ def test_shipped_key_is_recomputed_from_its_header() -> None:
     )
     assert header["key"] == recomputed
     # and the shipped palette is the one this version's defaults ask for
-    assert recomputed == palette_key(BallbotParams(), design_gains(), VerificationOptions(), 0.5)
+    limits = PaletteLimits()
+    assert recomputed == palette_key(
+        BallbotParams(),
+        design_gains(),
+        limits.verification_options(),
+        0.5,
+        limits.primitive_options(),
+    )
 
 
 @pytest.mark.parametrize("forced", [False, True])
@@ -174,13 +181,13 @@ def test_mismatch_is_rebuilt_once_then_cached_and_corrupt_cache_rebuilt(
     heavier = dataclasses.replace(BallbotParams(), body_mass=52.0)
     builds: list[float] = []
 
-    def fake_build(*, params, gains, options, d, processes, progress):  # type: ignore[no-untyped-def]
+    def fake_build(*, params, gains, options, d, processes, progress, primitive_options):  # type: ignore[no-untyped-def]
         builds.append(params.body_mass)
         return dataclasses.replace(
             shipped,
             policies=tuple(dataclasses.replace(p, gains=gains) for p in shipped.policies),
             params=params,
-            key=palette_key(params, gains, options, d),
+            key=palette_key(params, gains, options, d, primitive_options),
         )
 
     monkeypatch.setattr(palette_module, "build_palette_for", fake_build)
@@ -241,7 +248,7 @@ def test_forced_file_defaults_to_what_it_was_built_for(tmp_path) -> None:
         shipped,
         policies=tuple(dataclasses.replace(p, gains=gains) for p in shipped.policies),
         params=heavier,
-        key=palette_key(heavier, gains, options, shipped.d),
+        key=palette_key(heavier, gains, options, shipped.d, shipped.primitive_options),
     )
     path = other.save(tmp_path / "heavier.npz")
     pal = load_palette(path)
@@ -288,8 +295,17 @@ def test_palette_limits_give_the_default_options_and_read_back_the_shipped_palet
     from gracenav.primitives import PrimitiveSetOptions
 
     limits = PaletteLimits()
-    assert limits.primitive_options() == PrimitiveSetOptions()
-    assert limits.verification_options() == VerificationOptions()
+    # The default palette's maneuvers are limited references within 3 m/s³ of ball jerk,
+    # and so are its shifts; the nonic palette's limits are the options' own defaults.
+    assert limits.primitive_options() == PrimitiveSetOptions(reference="limited", max_ball_jerk=3.0)
+    base = VerificationOptions()
+    assert base.catch is not None
+    assert limits.verification_options() == dataclasses.replace(
+        base, catch=dataclasses.replace(base.catch, shift_max_ball_jerk=3.0)
+    )
+    nonic = PaletteLimits(reference="nonic", max_ball_jerk=6.0, shift_max_ball_jerk=12.0)
+    assert nonic.primitive_options() == PrimitiveSetOptions()
+    assert nonic.verification_options() == base
     assert PaletteLimits.of(load_palette()) == limits
     fast = PaletteLimits(cruise_speeds=(0.5, 1.0, 1.2), max_speed=1.35, reference="limited")
     prim = fast.primitive_options()
@@ -337,7 +353,8 @@ def _shipped_as_built(name: str, limits: PaletteLimits) -> Palette:
 
     params = BallbotParams()
     pal = load_palette(name)
-    assert palette_file(name) == shipped_palette_path(name) != shipped_palette_path()
+    assert palette_file(name) == shipped_palette_path(name)
+    assert (shipped_palette_path(name) == shipped_palette_path()) == (name == "gentle")
     assert pal.key == palette_key(
         params, design_gains(params), limits.verification_options(), 0.5, limits.primitive_options()
     )
@@ -348,8 +365,8 @@ def _shipped_as_built(name: str, limits: PaletteLimits) -> Palette:
 
 
 def test_the_speed_palette_is_shipped_and_is_what_its_build_command_asks_for() -> None:
-    """`--palette speed` is the file `gracenav palette build --reference limited
-    --cruise-speeds 1.0 1.2` writes: its key is that of the command's inputs (the
+    """`--palette speed` is the file `gracenav palette build --cruise-speeds 1.0 1.2
+    --max-ball-jerk 6 --shift-max-ball-jerk 12` writes: its key is that of the command's inputs (the
     CMU robot, its designed gains, the command's limits), so it is reproducible; every
     policy it keeps passed verification and it carries the three levels."""
     from gracenav.palette import catch_speeds_for
@@ -359,7 +376,8 @@ def test_the_speed_palette_is_shipped_and_is_what_its_build_command_asks_for() -
         cruise_speeds=speeds,
         catch_speeds=catch_speeds_for(speeds),
         max_speed=max(0.8, 1.1 * speeds[-1]),
-        reference="limited",
+        max_ball_jerk=6.0,
+        shift_max_ball_jerk=12.0,
     )
     pal = _shipped_as_built("speed", limits)
     for name in ("cruise2_x", "cruise3_xy", "rest_to_cruise2_x_3_0"):
@@ -384,16 +402,15 @@ def _ball_jerk(prim: SampledPrimitive) -> float:
 
 
 def test_the_smooth_palette_is_shipped_and_is_what_its_build_command_asks_for() -> None:
-    """`--palette smooth` is the file `gracenav palette build --reference limited
-    --max-ball-jerk 2 --shift-max-ball-jerk 2` writes (its key is that of the command's
-    inputs); every policy it keeps passed verification; it has the default palette's 36
-    maneuvers, whose 3D plans keep the ball's jerk (differentiated as the run summaries
-    do, with the trims around each) within 2 m/s³ to 1 % (measured: 1.99-2.01; the
-    default's reach 6.88), for 8.5 % more of their total duration (118.375 s against
-    109.125 s)."""
-    limits = PaletteLimits(reference="limited", max_ball_jerk=2.0, shift_max_ball_jerk=2.0)
+    """`--palette smooth` is the file `gracenav palette build --max-ball-jerk 2
+    --shift-max-ball-jerk 2` writes (its key is that of the command's inputs); every
+    policy it keeps passed verification; it has the nonic palette's 36 maneuvers, whose
+    3D plans keep the ball's jerk (differentiated as the run summaries do, with the trims
+    around each) within 2 m/s³ to 1 % (measured: 1.99-2.01; the nonics' reach 6.88), for
+    8.5 % more of their total duration (118.375 s against 109.125 s)."""
+    limits = PaletteLimits(max_ball_jerk=2.0, shift_max_ball_jerk=2.0)
     pal = _shipped_as_built("smooth", limits)
-    default = load_palette()
+    default = load_palette("nonic")
 
     smooth, fast = _maneuvers(pal), _maneuvers(default)
     assert len(smooth) == 36 and set(smooth) == set(fast)
@@ -407,31 +424,35 @@ def test_the_smooth_palette_is_shipped_and_is_what_its_build_command_asks_for() 
     )
 
 
-def test_the_gentle_palette_is_shipped_and_is_what_its_build_command_asks_for() -> None:
-    """`--palette gentle` is the file `gracenav palette build --reference limited
-    --max-ball-jerk 3 --shift-max-ball-jerk 3` writes (its key is that of the command's
-    inputs); every policy it keeps passed verification; it has the default palette's 36
-    maneuvers, whose 3D plans keep the ball's jerk within 3 m/s³ to 1 % (measured:
-    2.96-3.02; the default's reach 6.88), in at most the nonics' total duration
+def test_the_default_palette_is_what_the_build_command_writes_by_default() -> None:
+    """The default palette (also shipped as `--palette gentle`) is the file `gracenav
+    palette build` writes with its defaults, :class:`PaletteLimits` (its key is that of
+    those inputs); every policy it keeps passed verification; it has the nonic
+    palette's 36 maneuvers, whose 3D plans keep the ball's jerk within 3 m/s³ to 1 %
+    (measured: 2.96-3.02; the nonics' reach 6.88), in at most the nonics' total duration
     (107.75 s against 109.125 s), each within 1.15 times its nonic's (measured: at most
     1.125, the 2 s lane changes taking 2.25 s)."""
     limits = PaletteLimits(reference="limited", max_ball_jerk=3.0, shift_max_ball_jerk=3.0)
+    assert limits == PaletteLimits()
     pal = _shipped_as_built("gentle", limits)
-    default = load_palette()
+    assert load_palette().key == pal.key
+    nonic_palette = _shipped_as_built(
+        "nonic", PaletteLimits(reference="nonic", max_ball_jerk=6.0, shift_max_ball_jerk=12.0)
+    )
 
-    gentle, nonic = _maneuvers(pal), _maneuvers(default)
+    gentle, nonic = _maneuvers(pal), _maneuvers(nonic_palette)
     assert len(gentle) == 36 and set(gentle) == set(nonic)
     assert max(_ball_jerk(p) for p in gentle.values()) <= 3.0 * 1.01
     assert max(_ball_jerk(p) for p in nonic.values()) > 2 * 3.0
     assert sum(p.duration for p in gentle.values()) <= sum(p.duration for p in nonic.values())
     assert all(gentle[n].duration <= 1.15 * nonic[n].duration for n in gentle)
-    assert pal.key not in {load_palette(n).key for n in ("default", "speed", "smooth")}
+    assert pal.key not in {load_palette(n).key for n in ("nonic", "speed", "smooth")}
 
 
 def test_shipped_palettes_by_name_and_files_of_those_names(monkeypatch, tmp_path) -> None:
     from gracenav.palette import SHIPPED_PALETTES, palette_file
 
-    assert set(SHIPPED_PALETTES) == {"default", "speed", "smooth", "gentle"}
+    assert set(SHIPPED_PALETTES) == {"default", "gentle", "nonic", "speed", "smooth"}
     assert load_palette("default").key == load_palette().key
     monkeypatch.setenv(PALETTE_ENV, "speed")
     assert load_palette().key == load_palette("speed").key
@@ -441,11 +462,11 @@ def test_shipped_palettes_by_name_and_files_of_those_names(monkeypatch, tmp_path
     assert palette_file("./speed") == Path("speed") != shipped_palette_path("speed")
     with pytest.raises(CacheError, match="cannot read palette file speed"):
         load_palette(Path("speed"))
-    with pytest.raises(CacheError, match="shipped: default, speed, smooth, gentle"):
+    with pytest.raises(CacheError, match="shipped: default, gentle, nonic, speed, smooth"):
         shipped_palette_path("fast")
 
 
-@pytest.mark.parametrize("name", ["default", "speed", "smooth", "gentle"])
+@pytest.mark.parametrize("name", ["default", "nonic", "speed", "smooth"])
 def test_policies_that_start_at_rest_were_verified_from_the_still_band(name: str) -> None:
     """Every kept policy that starts at rest, other than the rest trims and the capture
     regulators, carries its verification from the corners of the still band at both

@@ -105,16 +105,17 @@ def test_the_bound_is_a_palette_limit_and_changes_the_key(palette) -> None:
     opts = limits.verification_options()
     assert opts.catch is not None and opts.catch.shift_max_ball_jerk == 6.0
     assert "shifts at most 6 m/s³" in limits.describe(60.0)
-    assert PaletteLimits.of(palette).shift_max_ball_jerk == 12.0
+    assert PaletteLimits.of(palette).shift_max_ball_jerk == 3.0
     assert PaletteLimits().verification_options() == palette.options
-    same = palette_key(palette.params, palette.gains, palette.options, palette.d)
+    prim = palette.primitive_options
+    same = palette_key(palette.params, palette.gains, palette.options, palette.d, prim)
     assert same == palette.key
     catch = palette.options.catch
     assert catch is not None
     free = dataclasses.replace(
         palette.options, catch=dataclasses.replace(catch, shift_max_ball_jerk=None)
     )
-    assert palette_key(palette.params, palette.gains, free, palette.d) != palette.key
+    assert palette_key(palette.params, palette.gains, free, palette.d, prim) != palette.key
     before = dataclasses.asdict(free)
     del before["catch"]["shift_max_ball_jerk"]
     assert _options_key(free) == before

@@ -188,14 +188,22 @@ def room():  # type: ignore[no-untyped-def]
     return lib, build_graph(lib)
 
 
-def test_modelled_latency_captures_land_later_and_still_catch(room) -> None:  # type: ignore[no-untyped-def]
+@pytest.fixture(scope="module")
+def nonic_room():  # type: ignore[no-untyped-def]
+    """The room on the nonic palette, where the push of 22 N s at 3 s leaves the robot
+    in no library policy's domain (on the default palette a library policy holds it)."""
+    lib = build_library(load_palette("nonic"), load_map(ROOM), footprint_radius=0.2, max_halvings=1)
+    return lib, build_graph(lib)
+
+
+def test_modelled_latency_captures_land_later_and_still_catch(nonic_room) -> None:  # type: ignore[no-untyped-def]
     """With planning="modelled" and a latency of 20 ms, a push only a catch recovers
     from is caught by a catch planned for the state 50 ms ahead, which starts when
     its start domain holds the state then; the task reaches the goal without
     balancing mode, as with the capture computed at once."""
     from gracenav.execution import EventReason
 
-    lib, graph = room
+    lib, graph = nonic_room
     x0 = state_from_position([1.0, 1.0, 0.0, 0.0], lib.palette.params.ball_radius)
     push = [Push(3.0, (22.0, 5.0))]
     runs = {}
@@ -214,7 +222,7 @@ def test_modelled_latency_captures_land_later_and_still_catch(room) -> None:  # 
     assert late.tick - inst.tick == 51
 
 
-def test_threaded_planning_never_waits_in_step(room, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+def test_threaded_planning_never_waits_in_step(nonic_room, monkeypatch) -> None:  # type: ignore[no-untyped-def]
     """A capture computed on the worker thread while step keeps returning commands:
     the worker is held until 200 ticks after the push (released by the loop itself), so
     a step that waited for it would stall for the worker's 30 s timeout."""
@@ -223,7 +231,7 @@ def test_threaded_planning_never_waits_in_step(room, monkeypatch) -> None:  # ty
 
     from gracenav.execution import EventReason
 
-    lib, graph = room
+    lib, graph = nonic_room
     hc = HybridController(lib, graph)
     release = threading.Event()
     plan = hc.capture_plan

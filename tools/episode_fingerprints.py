@@ -9,9 +9,11 @@ position noise. Each episode is reduced to its status, its length, its events, t
 goals it reached and SHA-256 digests of its states, inputs, policies and references;
 its final state is kept in full.
 
-    python tools/episode_fingerprints.py --out tests/data/episode_fingerprints.json
+    GRACENAV_PALETTE=nonic python tools/episode_fingerprints.py --out FILE
 
-``tests/test_episode_fingerprints.py`` runs the same cases and compares.
+The reference, ``tests/data/episode_fingerprints.json``, was made on the nonic palette
+(the default then); ``tests/test_episode_fingerprints.py`` runs the same cases on it
+and compares.
 """
 
 from __future__ import annotations

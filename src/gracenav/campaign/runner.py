@@ -18,6 +18,7 @@ from gracenav.errors import ConfigError, OutputError
 
 if TYPE_CHECKING:
     from gracenav.baseline import DecoupledOptions
+    from gracenav.palette import Palette
 
 __all__ = ["CLUSTER_TIMEOUT_S", "run_campaign", "run_trial", "trial_result"]
 
@@ -60,24 +61,24 @@ def _palette() -> Any:
     return _PALETTE[0]
 
 
-def _prepared(scenario: Any) -> Any:
-    """The scenario's library and graph, built once per worker process."""
+def _prepared(scenario: Any, palette: Any) -> Any:
+    """The scenario's library and graph on ``palette``, built once per worker process."""
     from gracenav.scenarios import library_key, prepare_library
 
-    key = library_key(scenario, _palette())
+    key = library_key(scenario, palette)
     hit = _PREPARED.get(key)
     if hit is None:
         if len(_PREPARED) >= _PREPARED_MAX:
             _PREPARED.clear()
-        hit = prepare_library(scenario, _palette())
+        hit = prepare_library(scenario, palette)
         _PREPARED[key] = hit
     return hit
 
 
-def _pair_check(campaign: Campaign) -> PairCheck:
-    """Whether gracenav's library of the base scenario can start at rest at ``start``
-    and reach a rest goal at ``goal``: the same check for every planner, so that all
-    planners get the same pairs."""
+def _pair_check(campaign: Campaign, palette: Any) -> PairCheck:
+    """Whether gracenav's library (on ``palette``) of the base scenario can start at rest
+    at ``start`` and reach a rest goal at ``goal``: the same check for every planner, so
+    that all planners get the same pairs."""
     from gracenav.errors import PlanningError
     from gracenav.scenarios import check_task, parse_scenario
 
@@ -86,12 +87,12 @@ def _pair_check(campaign: Campaign) -> PairCheck:
     base = dataclasses.replace(
         parse_scenario(doc, source=f"{campaign.name} scenario"), region="map"
     )
-    prepared = _prepared(base)
+    prepared = _prepared(base, palette)
 
     def accept(start: list[float], goal: list[float]) -> bool:
         sc = dataclasses.replace(base, starts=((*start, 0.0, 0.0),), goals=((*goal, 0.0, 0.0),))
         try:
-            check_task(sc, prepared, _palette())
+            check_task(sc, prepared, palette)
         except PlanningError:
             return False
         return True
@@ -113,18 +114,22 @@ def trial_result(
     params: Any = None,
     *,
     decoupled_options: DecoupledOptions | None = None,
+    palette: Palette | None = None,
 ) -> tuple[dict[str, Any], Any]:
     """Run trial ``index`` with ``planner``: its result row (:func:`run_trial`) and the
     :class:`gracenav.scenarios.ScenarioResult` (None when no plan was found), for
     measurements that need the run itself (its episode, its library).
     ``decoupled_options`` (:class:`gracenav.baseline.DecoupledOptions`, default its
-    defaults) configures the decoupled baseline."""
+    defaults) configures the decoupled baseline; ``palette`` is the palette the trial
+    runs on and its pair is drawn with (default: :func:`gracenav.palette.load_palette`'s,
+    read once per process)."""
     from gracenav.errors import PlanningError
     from gracenav.execution import EventReason
     from gracenav.scenarios import parse_scenario, run_scenario
     from gracenav.scenarios.decoupled import run_decoupled
 
-    accept = _pair_check(campaign) if campaign.pairs is not None else None
+    palette = palette if palette is not None else _palette()
+    accept = _pair_check(campaign, palette) if campaign.pairs is not None else None
     inputs = draw_trial(campaign, index, accept)
     doc = trial_scenario(campaign, inputs, planner)
     scenario = parse_scenario(doc, source=f"{campaign.name} trial {index}")
@@ -132,11 +137,11 @@ def trial_result(
     try:
         if scenario.planner == "decoupled":
             result = run_decoupled(
-                scenario, palette=_palette(), params=params, options=decoupled_options
+                scenario, palette=palette, params=params, options=decoupled_options
             )
         else:
             result = run_scenario(
-                scenario, palette=_palette(), params=params, prepared=_prepared(scenario)
+                scenario, palette=palette, params=params, prepared=_prepared(scenario, palette)
             )
     except PlanningError:
         # No verified way (or no geometric path) from this start to this goal.

@@ -60,10 +60,11 @@ def register(sub: Any) -> None:
     b.add_argument(
         "--reference",
         choices=("nonic", "limited"),
-        default="nonic",
+        default="limited",
         help=(
-            "maneuver references: the nonic of fixed form (default), or the polynomials "
-            "that keep the lean and torque within their limits for the shortest duration"
+            "maneuver references: the polynomials that keep the lean, the torque and the "
+            "ball's jerk within their limits for the shortest duration (default), or the "
+            "nonic of fixed form"
         ),
     )
     b.add_argument(
@@ -86,16 +87,16 @@ def register(sub: Any) -> None:
     b.add_argument(
         "--max-ball-jerk",
         type=float,
-        default=6.0,
-        help="largest ball jerk of a limited reference (m/s³, default 6)",
+        default=3.0,
+        help="largest ball jerk of a limited reference (m/s³, default 3)",
     )
     b.add_argument(
         "--shift-max-ball-jerk",
         type=_bound_or_none,
-        default=12.0,
+        default=3.0,
         metavar="J",
         help=(
-            "largest ball jerk of the capture's shifts (m/s³, default 12): they last as "
+            "largest ball jerk of the capture's shifts (m/s³, default 3): they last as "
             "long as their nonic needs to stay within it; 'none': the shortest feasible "
             "nonic"
         ),

@@ -13,6 +13,7 @@ from gracenav._util.cache import cache_dir
 from gracenav.control import ControllerGains, design_gains
 from gracenav.errors import CacheError
 from gracenav.palette.build import build_palette
+from gracenav.palette.limits import PaletteLimits
 from gracenav.palette.palette import Palette, palette_key
 from gracenav.params import BallbotParams
 from gracenav.policies import SampledPrimitive, VerificationOptions
@@ -41,21 +42,24 @@ PALETTE_ENV = "GRACENAV_PALETTE"
 
 
 #: The palettes shipped inside the package, by name: ``default`` (one cruise speed,
-#: 0.5 m/s; nonic references), used when no palette is asked for; ``speed`` (cruise
-#: levels 0.5, 1.0 and 1.2 m/s, limited references; built with ``gracenav palette build
-#: --reference limited --cruise-speeds 1.0 1.2``); ``smooth`` (one cruise speed,
-#: limited references whose ball jerk stays within 2 m/s³, shifts too; built with
-#: ``gracenav palette build --reference limited --max-ball-jerk 2
-#: --shift-max-ball-jerk 2``); and ``gentle`` (the same within 3 m/s³, where the
-#: limited references take as long as the nonics in all; built with ``gracenav palette
-#: build --reference limited --max-ball-jerk 3 --shift-max-ball-jerk 3``). ``--palette
-#: NAME`` and ``$GRACENAV_PALETTE=NAME`` select one (:func:`palette_file`); a file of
-#: that name is ``./NAME``.
+#: 0.5 m/s; limited references whose ball jerk stays within 3 m/s³, shifts too: what
+#: ``gracenav palette build`` builds by default, :class:`PaletteLimits`), used when no
+#: palette is asked for, and ``gentle``, the same file by the name it was first shipped
+#: under; ``nonic`` (the same speed with the nonic references of fixed form, shifts
+#: within 12 m/s³: the default before; built with ``gracenav palette build --reference
+#: nonic --max-ball-jerk 6 --shift-max-ball-jerk 12``); ``speed`` (cruise levels 0.5,
+#: 1.0 and 1.2 m/s, limited references within 6 m/s³; built with ``gracenav palette
+#: build --cruise-speeds 1.0 1.2 --max-ball-jerk 6 --shift-max-ball-jerk 12``); and
+#: ``smooth`` (limited references and shifts within 2 m/s³; built with ``gracenav
+#: palette build --max-ball-jerk 2 --shift-max-ball-jerk 2``). ``--palette NAME`` and
+#: ``$GRACENAV_PALETTE=NAME`` select one (:func:`palette_file`); a file of that name is
+#: ``./NAME``.
 SHIPPED_PALETTES: dict[str, str] = {
     "default": "palette.npz",
+    "gentle": "palette.npz",
+    "nonic": "palette-nonic.npz",
     "speed": "palette-speed.npz",
     "smooth": "palette-smooth.npz",
-    "gentle": "palette-gentle.npz",
 }
 
 
@@ -122,11 +126,10 @@ def _mismatch(
     gains: ControllerGains,
     options: VerificationOptions,
     d: float,
-    primitive_options: PrimitiveSetOptions | None = None,
+    primitive_options: PrimitiveSetOptions,
 ) -> str | None:
-    """Why ``pal`` cannot serve the request, or None if it can (``primitive_options``
-    default: the defaults)."""
-    prim = primitive_options if primitive_options is not None else PrimitiveSetOptions()
+    """Why ``pal`` cannot serve the request, or None if it can."""
+    prim = primitive_options
     if pal.key != palette_key(params, gains, options, d, prim):
         return "it was built for " + "; ".join(
             _requested_differences(pal, params, gains, options, d, prim)
@@ -249,7 +252,9 @@ def load_palette(
         What the palette must have been built for. Defaults: for a forced file, what
         it was built for (its gains designed anew from its design inputs and
         compared); otherwise the CMU ballbot, :func:`gracenav.control.design_gains`
-        on ``params``, default :class:`VerificationOptions` and d = 0.5 m.
+        on ``params``, the verification options of the default :class:`PaletteLimits`
+        and d = 0.5 m. The primitive set (references, speeds) is always that of the
+        default :class:`PaletteLimits` unless a file is forced.
     build : bool
         Build a missing palette (False: raise CacheError instead).
     processes : int, optional
@@ -282,11 +287,13 @@ def load_palette(
                 "file with `gracenav palette build --out FILE`"
             )
         return pal
+    limits = PaletteLimits()
     params = params if params is not None else BallbotParams()
     gains = gains if gains is not None else design_gains(params)
-    options = options if options is not None else VerificationOptions()
+    options = options if options is not None else limits.verification_options()
     d = float(d) if d is not None else 0.5
-    key = palette_key(params, gains, options, d)
+    prim = limits.primitive_options()
+    key = palette_key(params, gains, options, d, prim)
     for candidate in (shipped_palette_path(), cached_palette_path(key)):
         if not candidate.is_file():
             continue
@@ -294,7 +301,7 @@ def load_palette(
             pal = _read_palette(candidate)
         except CacheError:
             continue  # a corrupt or stale cache file is rebuilt below
-        if _mismatch(pal, params, gains, options, d) is None:
+        if _mismatch(pal, params, gains, options, d, prim) is None:
             return pal
     if not build:
         raise CacheError(
@@ -302,7 +309,13 @@ def load_palette(
             f"options and d = {d} m; build one with `gracenav palette build`"
         )
     pal = build_palette_for(
-        params=params, gains=gains, options=options, d=d, processes=processes, progress=progress
+        params=params,
+        gains=gains,
+        options=options,
+        d=d,
+        processes=processes,
+        progress=progress,
+        primitive_options=prim,
     )
     try:
         pal.save(cached_palette_path(key))

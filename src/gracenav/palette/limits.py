@@ -52,11 +52,12 @@ class PaletteLimits:
     max_speed : float
         Largest speed of a maneuver's reference (m/s), above the top cruise speed.
     reference : {"nonic", "limited"}
-        The maneuvers' references (:attr:`PrimitiveSetOptions.reference`).
+        The maneuvers' references (:attr:`PrimitiveSetOptions.reference`): "limited"
+        (the shortest within the lean, torque and ball jerk limits) or "nonic".
     max_ball_jerk : float
-        Largest ball jerk a limited reference plans (m/s³).
+        Largest ball jerk a limited reference plans (m/s³), 3.
     shift_max_ball_jerk : float or None
-        Largest ball jerk of the shifts' references (m/s³, 12;
+        Largest ball jerk of the shifts' references (m/s³, 3;
         :attr:`CatchOptions.shift_max_ball_jerk`); None: the shortest feasible nonic.
     verified_lean : float
         Lean within which every run of a verification must stay (rad), 8°.
@@ -68,9 +69,9 @@ class PaletteLimits:
     max_lean: float = math.radians(4.5)
     cruise_speeds: tuple[float, ...] = (0.5,)
     max_speed: float = 0.8
-    reference: Literal["nonic", "limited"] = "nonic"
-    max_ball_jerk: float = 6.0
-    shift_max_ball_jerk: float | None = 12.0
+    reference: Literal["nonic", "limited"] = "limited"
+    max_ball_jerk: float = 3.0
+    shift_max_ball_jerk: float | None = 3.0
     verified_lean: float = math.radians(8.0)
     catch_speeds: tuple[float, ...] = CatchOptions().speeds
 
