@@ -42,6 +42,15 @@ def register(sub: Any) -> None:
         default=0.5,
         help="distance parameter d (m, default 0.5, in [0.1, 2])",
     )
+    pr.add_argument(
+        "--reference",
+        choices=("limited", "nonic"),
+        default="limited",
+        help=(
+            "the maneuvers' references: those of the default palette (limited, the ball's "
+            "jerk within 3 m/s³; default) or the nonics of the nonic palette"
+        ),
+    )
     pr.add_argument("--out", type=Path, required=True, help="output PNG file")
     pr.set_defaults(func=run_primitives)
     dm = s.add_parser(
@@ -119,11 +128,16 @@ def register(sub: Any) -> None:
 
 def run_primitives(args: argparse.Namespace) -> int:
     """Run ``gracenav plot primitives``."""
+    from gracenav.palette import PaletteLimits
     from gracenav.plotting.primitives import plot_primitives
-    from gracenav.primitives import primitive_set
+    from gracenav.primitives import PrimitiveSetOptions, primitive_set
 
     out = check_figure_path(args.out)
-    prims = primitive_set(d=args.d)
+    if args.reference == "limited":
+        options = PaletteLimits().primitive_options()
+    else:
+        options = PrimitiveSetOptions(reference="nonic")
+    prims = primitive_set(d=args.d, options=options)
     save_figure(out, lambda tmp: plot_primitives(prims, tmp))
     print(f"wrote {out}")
     return 0

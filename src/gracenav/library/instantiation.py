@@ -86,9 +86,10 @@ MAX_DESIGN_PUSH = 80.0
 
 #: Default design push of :func:`build_library` (N s). It acts only where a reference's
 #: flat output is faster than :data:`gracenav.library.push_fans.FAN_FLOOR` (0.8 m/s), so
-#: the shipped palette's libraries do not change. With the speed levels (`gracenav
-#: palette build --reference limited --cruise-speeds 1.0 1.2`) it catches every one of
-#: 900 seeded pushes of 0–16 N s on the 5 m room (291–295 of 300 per seed without)
+#: the shipped palette's libraries do not change. With the speed levels (the ``speed``
+#: palette: ``gracenav palette build --cruise-speeds 1.0 1.2 --max-ball-jerk 6``) it
+#: catches every one of 900 seeded pushes of 0–16 N s on the 5 m room (291–295 of 300
+#: per seed without)
 #: and keeps the 1.2 m/s level, so the 23.8 m diagonal of bench/bench_speed.py takes
 #: 25.37 s (1.48 times its physical bound) against 25.05 s without; 16 N s would
 #: leave that level out (28.52 s). docs/design/speed.md has the measurements.
