@@ -163,6 +163,12 @@ def test_forced_file_for_other_inputs_says_what_differs(monkeypatch, tmp_path) -
         load_palette(shipped_palette_path(), params=heavier)
     with pytest.raises(CacheError, match=r"verification option goal_position_extent: 0\.08"):
         load_palette(shipped_palette_path(), options=VerificationOptions(goal_position_extent=0.05))
+    nonic = PaletteLimits(reference="nonic", max_ball_jerk=6.0, shift_max_ball_jerk=12.0)
+    with pytest.raises(
+        CacheError, match=r"option reference: 'limited' in the file, the default requested"
+    ):
+        load_palette(shipped_palette_path(), limits=nonic)
+    assert load_palette("nonic", limits=nonic).key == load_palette("nonic").key
     # $GRACENAV_PALETTE forces a file like --palette does
     monkeypatch.setenv(PALETTE_ENV, str(shipped_palette_path()))
     with pytest.raises(CacheError, match="cannot be used"):
@@ -209,15 +215,20 @@ def test_mismatch_is_rebuilt_once_then_cached_and_corrupt_cache_rebuilt(
 def test_real_rebuild_for_other_parameters(monkeypatch, tmp_path) -> None:
     monkeypatch.setenv("GRACENAV_CACHE_DIR", str(tmp_path))
     heavier = dataclasses.replace(BallbotParams(), body_mass=53.0)
-    # Without the scale ladder and the catches: the rebuild path is the same, at a
-    # fraction of the cost.
+    # Without the scale ladder and the catches, and with the nonics (planned in about 2 s
+    # where the default palette's references take 25 s): the rebuild path is the same,
+    # at a fraction of the cost.
     options = VerificationOptions(scale_ladder=(), catch=None)
-    pal = load_palette(params=heavier, options=options, progress=False)
+    nonic = PaletteLimits(reference="nonic", max_ball_jerk=6.0, shift_max_ball_jerk=12.0)
+    pal = load_palette(params=heavier, options=options, limits=nonic, progress=False)
     assert len(pal) >= 35 and pal.params == heavier and pal.options == options
+    assert pal.primitive_options == nonic.primitive_options()
     assert all(p.report is not None and p.report.passed for p in pal.policies)
     assert cached_palette_path(pal.key).is_file()
     # Read from the cache (build=False; bench/bench_palette.py times a palette read).
-    again = load_palette(params=heavier, options=options, build=False)
+    again = load_palette(params=heavier, options=options, limits=nonic, build=False)
+    with pytest.raises(CacheError, match="no palette matches"):
+        load_palette(params=heavier, options=options, build=False)  # the default limits
     assert again.names == pal.names
     np.testing.assert_array_equal(again.gains.lqr, pal.gains.lqr)
 

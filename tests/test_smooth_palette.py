@@ -1,7 +1,7 @@
-"""The shipped smooth and gentle palettes on a task with turns: the ball's jerk (from the
+"""The shipped smooth and default palettes on a task with turns: the ball's jerk (from the
 true state, as the run summaries measure it) stays near each palette's bound (2 and
-3 m/s³), where the default palette's nonics jerk it several times harder, for a little
-more time."""
+3 m/s³), where the nonic palette (the default before) jerks it several times harder, for
+a little more time."""
 
 from __future__ import annotations
 
@@ -50,23 +50,23 @@ def _run(name: str) -> tuple[float, float, float, float]:
 
 def test_the_smooth_palette_keeps_the_balls_jerk_near_its_bound() -> None:
     """Measured: max / p95 jerk 2.13 / 1.98 m/s³ in 13.62 s with the smooth palette,
-    6.91 / 5.70 m/s³ in 12.50 s with the default; largest lean 4.34° and 4.42°."""
-    runs = {name: _run(name) for name in ("smooth", "default")}
+    6.91 / 5.70 m/s³ in 12.50 s with the nonic palette; largest lean 4.34° and 4.42°."""
+    runs = {name: _run(name) for name in ("smooth", "nonic")}
     t_smooth, jerk_smooth, p95_smooth, lean_smooth = runs["smooth"]
-    t_fast, jerk_fast, p95_fast, _ = runs["default"]
+    t_fast, jerk_fast, p95_fast, _ = runs["nonic"]
     assert jerk_smooth <= 2.0 * 1.25
     assert jerk_fast >= 2 * jerk_smooth and p95_fast >= 2 * p95_smooth
     assert t_smooth <= 1.3 * t_fast
     assert lean_smooth <= math.radians(4.5)
 
 
-def test_the_gentle_palette_halves_the_jerk_for_about_the_same_time() -> None:
-    """Measured: max / p95 jerk 3.04 / 2.97 m/s³ in 12.75 s with the gentle palette
+def test_the_default_palette_halves_the_nonics_jerk_for_about_the_same_time() -> None:
+    """Measured: max / p95 jerk 3.04 / 2.97 m/s³ in 12.75 s with the default palette
     (limited references within 3 m/s³, as long in all as the nonics), 6.91 / 5.70 m/s³
-    in 12.50 s with the default; largest lean 4.20° and 4.42°."""
-    runs = {name: _run(name) for name in ("gentle", "default")}
-    t_gentle, jerk_gentle, p95_gentle, lean_gentle = runs["gentle"]
-    t_fast, jerk_fast, p95_fast, _ = runs["default"]
+    in 12.50 s with the nonic palette; largest lean 4.20° and 4.42°."""
+    runs = {name: _run(name) for name in ("default", "nonic")}
+    t_gentle, jerk_gentle, p95_gentle, lean_gentle = runs["default"]
+    t_fast, jerk_fast, p95_fast, _ = runs["nonic"]
     assert jerk_gentle <= 3.0 * 1.1
     assert jerk_fast >= 2 * jerk_gentle and p95_fast >= 1.5 * p95_gentle
     assert t_gentle <= 1.05 * t_fast

@@ -98,9 +98,13 @@ def _requested_differences(
 ) -> list[str]:
     """What the inputs stored in ``pal`` and the requested ones differ in, in words."""
 
+    def show(d: dict[str, Any], k: str) -> str:
+        # Options at their defaults are left out of the stored dictionaries.
+        return repr(d[k]) if k in d else "the default"
+
     def fields(kind: str, have: dict[str, Any], want: dict[str, Any]) -> list[str]:
         return [
-            f"{kind} {k}: {have.get(k)!r} in the file, {want.get(k)!r} requested"
+            f"{kind} {k}: {show(have, k)} in the file, {show(want, k)} requested"
             for k in sorted(set(have) | set(want))
             if have.get(k) != want.get(k)
         ]
@@ -226,11 +230,13 @@ def load_palette(
     gains: ControllerGains | None = None,
     options: VerificationOptions | None = None,
     d: float | None = None,
+    limits: PaletteLimits | None = None,
     build: bool = True,
     processes: int | None = None,
     progress: bool = True,
 ) -> Palette:
-    """The palette for the requested robot, controller, verification options and d.
+    """The palette for the requested robot, controller, verification options, d and
+    limits.
 
     Without ``path`` (and without ``$GRACENAV_PALETTE``), the palette shipped with
     gracenav is returned when it was built from the requested inputs; otherwise a
@@ -253,8 +259,12 @@ def load_palette(
         it was built for (its gains designed anew from its design inputs and
         compared); otherwise the CMU ballbot, :func:`gracenav.control.design_gains`
         on ``params``, the verification options of the default :class:`PaletteLimits`
-        and d = 0.5 m. The primitive set (references, speeds) is always that of the
-        default :class:`PaletteLimits` unless a file is forced.
+        and d = 0.5 m.
+    limits : PaletteLimits, optional
+        The limits the palette must have been built to: its primitive set (references,
+        speeds) and, when ``options`` is not given, its verification options. Default:
+        for a forced file, what it was built to; otherwise ``PaletteLimits()``, the
+        default palette's.
     build : bool
         Build a missing palette (False: raise CacheError instead).
     processes : int, optional
@@ -276,10 +286,11 @@ def load_palette(
         params = params if params is not None else pal.params
         if gains is None:
             gains = _redesign(pal.gains) if params == pal.params else design_gains(params)
+        if limits is not None and options is None:
+            options = limits.verification_options()
         options = options if options is not None else pal.options
-        why = _mismatch(
-            pal, params, gains, options, d if d is not None else pal.d, pal.primitive_options
-        )
+        prim = limits.primitive_options() if limits is not None else pal.primitive_options
+        why = _mismatch(pal, params, gains, options, d if d is not None else pal.d, prim)
         if why is not None:
             raise CacheError(
                 f"{forced}: this palette cannot be used: {why}. Leave out --palette / "
@@ -287,7 +298,7 @@ def load_palette(
                 "file with `gracenav palette build --out FILE`"
             )
         return pal
-    limits = PaletteLimits()
+    limits = limits if limits is not None else PaletteLimits()
     params = params if params is not None else BallbotParams()
     gains = gains if gains is not None else design_gains(params)
     options = options if options is not None else limits.verification_options()
