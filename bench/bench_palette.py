@@ -52,9 +52,20 @@ def main() -> None:
     if args.build:
         from gracenav.primitives import primitive_set
 
-        prims = [SampledPrimitive.from_primitive(p) for p in primitive_set()]
+        # The default palette's primitive set and verification options.
+        pset = primitive_set(d=pal.d, params=pal.params, options=pal.primitive_options)
+        prims = [SampledPrimitive.from_primitive(p) for p in pset]
         t0 = time.perf_counter()
-        build_palette(prims, d=pal.d, processes=2, progress=False)
+        build_palette(
+            prims,
+            d=pal.d,
+            params=pal.params,
+            gains=pal.gains,
+            options=pal.options,
+            processes=2,
+            progress=False,
+            primitive_options=pal.primitive_options,
+        )
         rows.append(("build (bisection sizing), 2 processes", f"{time.perf_counter() - t0:.1f} s"))
     width = max(len(r[0]) for r in rows)
     print(f"{'measure':<{width}}  value")
