@@ -26,6 +26,9 @@ _LOG = "trials.jsonl"
 _META = "campaign.json"
 _LOCK = ".campaign.lock"
 CLUSTER_TIMEOUT_S = 30.0
+#: Longest wait (s) for a trial on a cluster to finish before every pending trial's
+#: state is read again.
+CLUSTER_POLL_S = 1.0
 """How long ``--cluster`` waits to connect to the Dask scheduler (s)."""
 
 _MEASURES = (
@@ -331,7 +334,7 @@ def _run_on_cluster(
     such losses goes into the row as ``worker_losses``."""
     try:
         from distributed import Client
-        from distributed import as_completed as dask_completed
+        from distributed import wait as dask_wait
     except ImportError:
         raise ConfigError(
             "--cluster needs Dask distributed: pip install 'gracenav[cluster]'"
@@ -351,12 +354,23 @@ def _run_on_cluster(
             fut = client.submit(run_trial, campaign, i, p, params, key=key, pure=False)
             keys[fut.key] = (p, i)
             futures.append(fut)
-        # Results come with the completions, gathered on the client's own event loop.
-        for fut, row in dask_completed(futures, with_results=True):
-            losses = client.run_on_scheduler(_task_losses, key=fut.key)
-            row["worker_losses"] = int(losses)
-            fut.release()
-            record(row)
+        # Wait for the next completion, a second at a time, and read every future's own
+        # state: a future that was lost with its worker and finished again can be missed
+        # by distributed.as_completed, which then waits forever (dask/dask#8882).
+        pending = futures
+        while pending:
+            try:
+                dask_wait(pending, timeout=CLUSTER_POLL_S, return_when="FIRST_COMPLETED")
+            except TimeoutError:
+                pass
+            finished = [f for f in pending if f.done()]
+            pending = [f for f in pending if not f.done()]
+            for fut in finished:
+                row = fut.result()
+                losses = client.run_on_scheduler(_task_losses, key=fut.key)
+                row["worker_losses"] = int(losses)
+                fut.release()
+                record(row)
 
 
 def _task_losses(dask_scheduler: Any, key: str) -> int:
