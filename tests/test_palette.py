@@ -169,6 +169,8 @@ def test_forced_file_for_other_inputs_says_what_differs(monkeypatch, tmp_path) -
     ):
         load_palette(shipped_palette_path(), limits=nonic)
     assert load_palette("nonic", limits=nonic).key == load_palette("nonic").key
+    # Not forced, the shipped palette built to the requested limits is found.
+    assert load_palette(limits=nonic, build=False).key == load_palette("nonic").key
     # $GRACENAV_PALETTE forces a file like --palette does
     monkeypatch.setenv(PALETTE_ENV, str(shipped_palette_path()))
     with pytest.raises(CacheError, match="cannot be used"):

@@ -133,10 +133,9 @@ def _mismatch(
     primitive_options: PrimitiveSetOptions,
 ) -> str | None:
     """Why ``pal`` cannot serve the request, or None if it can."""
-    prim = primitive_options
-    if pal.key != palette_key(params, gains, options, d, prim):
+    if pal.key != palette_key(params, gains, options, d, primitive_options):
         return "it was built for " + "; ".join(
-            _requested_differences(pal, params, gains, options, d, prim)
+            _requested_differences(pal, params, gains, options, d, primitive_options)
         )
     diff = pal.gains.relative_difference(gains)
     if not diff <= GAINS_RTOL:
@@ -238,7 +237,7 @@ def load_palette(
     """The palette for the requested robot, controller, verification options, d and
     limits.
 
-    Without ``path`` (and without ``$GRACENAV_PALETTE``), the palette shipped with
+    Without ``path`` (and without ``$GRACENAV_PALETTE``), a palette shipped with
     gracenav is returned when it was built from the requested inputs; otherwise a
     matching palette from the user cache (:func:`cached_palette_path`), and when
     there is none (or it is corrupt) one is built once, with a progress bar, and
@@ -305,7 +304,9 @@ def load_palette(
     d = float(d) if d is not None else 0.5
     prim = limits.primitive_options()
     key = palette_key(params, gains, options, d, prim)
-    for candidate in (shipped_palette_path(), cached_palette_path(key)):
+    # The default palette first, then the other shipped ones, then the user cache.
+    shipped = dict.fromkeys(shipped_palette_path(name) for name in SHIPPED_PALETTES)
+    for candidate in (*shipped, cached_palette_path(key)):
         if not candidate.is_file():
             continue
         try:
