@@ -190,9 +190,10 @@ def room():  # type: ignore[no-untyped-def]
 
 def test_modelled_latency_captures_land_later_and_still_catch(room) -> None:  # type: ignore[no-untyped-def]
     """With planning="modelled" and a latency of 20 ms, a push only a catch recovers
-    from (22 N s at 2 s: at 3 s a library policy holds the pushed robot) is caught by a catch planned for the state 50 ms ahead, which starts when
-    its start domain holds the state then; the task reaches the goal without
-    balancing mode, as with the capture computed at once."""
+    from (22 N s at 2 s: at 3 s a library policy holds the pushed robot) is caught by
+    a catch planned for the state 50 ms ahead, which starts when its start domain holds
+    the state then; the task reaches the goal without balancing mode, as with the
+    capture computed at once."""
     from gracenav.execution import EventReason
 
     lib, graph = room
