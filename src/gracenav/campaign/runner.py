@@ -6,6 +6,7 @@ import dataclasses
 import fcntl
 import json
 import os
+import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
@@ -26,9 +27,8 @@ _LOG = "trials.jsonl"
 _META = "campaign.json"
 _LOCK = ".campaign.lock"
 CLUSTER_TIMEOUT_S = 30.0
-#: Longest wait (s) for a trial on a cluster to finish before every pending trial's
-#: state is read again.
-CLUSTER_POLL_S = 1.0
+#: Time (s) between two reads of the state of the trials running on a cluster.
+CLUSTER_POLL_S = 0.05
 """How long ``--cluster`` waits to connect to the Dask scheduler (s)."""
 
 _MEASURES = (
@@ -334,7 +334,6 @@ def _run_on_cluster(
     such losses goes into the row as ``worker_losses``."""
     try:
         from distributed import Client
-        from distributed import wait as dask_wait
     except ImportError:
         raise ConfigError(
             "--cluster needs Dask distributed: pip install 'gracenav[cluster]'"
@@ -354,17 +353,18 @@ def _run_on_cluster(
             fut = client.submit(run_trial, campaign, i, p, params, key=key, pure=False)
             keys[fut.key] = (p, i)
             futures.append(fut)
-        # Wait for the next completion, a second at a time, and read every future's own
-        # state: a future that was lost with its worker and finished again can be missed
-        # by distributed.as_completed, which then waits forever (dask/dask#8882).
+        # Each future's own state is read, CLUSTER_POLL_S apart: distributed.as_completed
+        # and distributed.wait wait on the default client's event loop, which is another
+        # client's when the process has two (a campaign run beside a client of the same
+        # cluster); as_completed then missed a future lost with its worker and waited
+        # forever, and wait failed on an event bound to the other loop.
         pending = futures
         while pending:
-            try:
-                dask_wait(pending, timeout=CLUSTER_POLL_S, return_when="FIRST_COMPLETED")
-            except TimeoutError:
-                pass
             finished = [f for f in pending if f.done()]
-            pending = [f for f in pending if not f.done()]
+            if not finished:
+                time.sleep(CLUSTER_POLL_S)
+                continue
+            pending = [f for f in pending if f not in finished]
             for fut in finished:
                 row = fut.result()
                 losses = client.run_on_scheduler(_task_losses, key=fut.key)
