@@ -47,8 +47,9 @@ ROOT = Path(__file__).resolve().parent.parent
 SCENARIO = ROOT / "src" / "gracenav" / "data" / "scenarios" / "corridor_person.yaml"
 PUSHES = ((2.0, (0.0, 12.0)), (5.0, (-9.0, 9.0)), (8.0, (14.0, 0.0)))
 ROOM = ROOT / "examples" / "maps" / "room_5m_box.yaml"
-#: Pushes that only catches placed at the state recover from (no moving obstacles).
-BIG = ((3.0, (22.0, 5.0)), (7.0, (-4.0, 20.0)))
+#: Pushes that only catches placed at the state recover from (no moving obstacles), on
+#: the default palette (on the nonic palette, 3 s and 7 s).
+BIG = ((2.0, (22.0, 5.0)), (6.0, (-4.0, 20.0)))
 
 
 def one_run(  # type: ignore[no-untyped-def]
