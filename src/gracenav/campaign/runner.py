@@ -27,9 +27,9 @@ _LOG = "trials.jsonl"
 _META = "campaign.json"
 _LOCK = ".campaign.lock"
 CLUSTER_TIMEOUT_S = 30.0
+"""How long ``--cluster`` waits to connect to the Dask scheduler (s)."""
 #: Time (s) between two reads of the state of the trials running on a cluster.
 CLUSTER_POLL_S = 0.05
-"""How long ``--cluster`` waits to connect to the Dask scheduler (s)."""
 
 _MEASURES = (
     "reached_goal",
