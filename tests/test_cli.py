@@ -87,3 +87,39 @@ def test_palette_show(capsys) -> None:
     passed = sum(p.starts_from_still_band for p in checked)
     assert 0 < passed < len(checked)
     assert f"still band: {passed} of the {len(checked)} policies that start at rest" in out
+
+
+@pytest.mark.parametrize(
+    ("argv", "changed"),
+    [
+        ([], {}),
+        (["--reference", "nonic"], {"reference": "nonic"}),
+        (["--max-ball-jerk", "6", "--shift-max-ball-jerk", "none"], {"max_ball_jerk": 6.0}),
+    ],
+)
+def test_palette_build_takes_the_limits_not_given_from_the_default_palette(
+    argv, changed, monkeypatch, tmp_path
+) -> None:
+    """`gracenav palette build` without limit options asks for exactly what
+    `PaletteLimits()` states (the shipped default palette's key); each option changes
+    only its own limit. The build itself is replaced: it stops the command."""
+    import dataclasses
+
+    import gracenav.palette as palette_module
+    from gracenav.errors import ConfigError
+    from gracenav.palette import PaletteLimits
+
+    asked = []
+
+    def record(**kwargs):  # type: ignore[no-untyped-def]
+        asked.append(kwargs)
+        raise ConfigError("stopped before the build")
+
+    monkeypatch.setattr(palette_module, "build_palette_for", record)
+    assert main(["palette", "build", *argv, "--out", str(tmp_path / "p.npz")]) == 2
+    want = dataclasses.replace(PaletteLimits(), **changed)
+    if "--shift-max-ball-jerk" in argv:
+        want = dataclasses.replace(want, shift_max_ball_jerk=None)
+    (kwargs,) = asked
+    assert kwargs["primitive_options"] == want.primitive_options()
+    assert kwargs["options"] == want.verification_options()

@@ -60,11 +60,11 @@ def register(sub: Any) -> None:
     b.add_argument(
         "--reference",
         choices=("nonic", "limited"),
-        default="limited",
+        default=argparse.SUPPRESS,
         help=(
             "maneuver references: the polynomials that keep the lean, the torque and the "
-            "ball's jerk within their limits for the shortest duration (default), or the "
-            "nonic of fixed form"
+            "ball's jerk within their limits for the shortest duration (limited, the "
+            "default palette's), or the nonic of fixed form"
         ),
     )
     b.add_argument(
@@ -87,16 +87,17 @@ def register(sub: Any) -> None:
     b.add_argument(
         "--max-ball-jerk",
         type=float,
-        default=3.0,
-        help="largest ball jerk of a limited reference (m/s³, default 3)",
+        default=argparse.SUPPRESS,
+        help="largest ball jerk of a limited reference (m/s³; default: the default palette's, 3)",
     )
     b.add_argument(
         "--shift-max-ball-jerk",
         type=_bound_or_none,
-        default=3.0,
+        default=argparse.SUPPRESS,
         metavar="J",
         help=(
-            "largest ball jerk of the capture's shifts (m/s³, default 3): they last as "
+            "largest ball jerk of the capture's shifts (m/s³; default: the default "
+            "palette's, 3): they last as "
             "long as their nonic needs to stay within it; 'none': the shortest feasible "
             "nonic"
         ),
@@ -200,9 +201,10 @@ def run_build(args: argparse.Namespace) -> int:
         cruise_speeds=speeds,
         catch_speeds=catch_speeds_for(speeds),
         max_speed=max_speed,
-        reference=args.reference,
-        max_ball_jerk=args.max_ball_jerk,
-        shift_max_ball_jerk=args.shift_max_ball_jerk,
+        # Limits not given are the default palette's (PaletteLimits()).
+        reference=getattr(args, "reference", PaletteLimits.reference),
+        max_ball_jerk=getattr(args, "max_ball_jerk", PaletteLimits.max_ball_jerk),
+        shift_max_ball_jerk=getattr(args, "shift_max_ball_jerk", PaletteLimits.shift_max_ball_jerk),
     )
     pal = build_palette_for(
         params=params,
