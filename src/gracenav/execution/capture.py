@@ -84,6 +84,28 @@ _Way = tuple[float, tuple[int, ...], int]
 _TERMINAL_REACH = 1.0
 
 
+#: Grid points (i, j) are looked up in bulk as one integer each (:func:`_cell_codes`);
+#: indices within this many of 0 are coded exactly (a 2**29-point-wide map).
+_CELL_OFFSET = 1 << 29
+
+
+def _cell_codes(cells: NDArray[np.int64]) -> NDArray[np.int64]:
+    """One integer per grid point (i, j) of ``cells``, shape (..., 2), equal only for
+    equal points (for |i|, |j| < ``_CELL_OFFSET``)."""
+    c = np.asarray(cells, dtype=np.int64) + _CELL_OFFSET
+    return np.asarray(c[..., 0] * (2 * _CELL_OFFSET) + c[..., 1], dtype=np.int64)
+
+
+def _has_cells(codes: NDArray[np.int64], cells: NDArray[np.int64]) -> BoolArray:
+    """Whether each grid point of ``cells`` (shape (..., 2)) is among the sorted
+    ``codes`` (:func:`_cell_codes`)."""
+    want = _cell_codes(cells)
+    if codes.size == 0:
+        return np.zeros(want.shape, dtype=bool)
+    at = np.minimum(np.searchsorted(codes, want), codes.size - 1)
+    return np.asarray(codes[at] == want, dtype=bool)
+
+
 def _remember(
     cache: dict[tuple[int, int, bool], list[_Way]], key: tuple[int, int, bool], ways: list[_Way]
 ) -> None:
@@ -332,6 +354,13 @@ class Capture:
             ok = rows[holds[library.palette_index[rows]]]
             if ok.size:
                 self._rest_onto[key] = ok
+        # The same grid points as sorted codes, for lookups of many points at once.
+        self._rest_codes = np.sort(
+            _cell_codes(np.array(list(self._rest), dtype=np.int64).reshape(-1, 2))
+        )
+        self._onto_codes = np.sort(
+            _cell_codes(np.array(list(self._rest_onto), dtype=np.int64).reshape(-1, 2))
+        )
         self._direct_ways: dict[tuple[int, int, bool], list[_Way]] = {}
         self._chained: dict[tuple[int, int, bool], list[_Way]] = {}
         self._chained_every: dict[tuple[int, int, bool], list[_Way]] = {}
@@ -399,16 +428,13 @@ class Capture:
             out.append((0.0, (), int(row)))
         q = self.origin + np.asarray(cell, dtype=float) * self.grid
         ends = self._shift_cells + np.asarray(cell, dtype=np.int64)
-        found = [
-            None if self._shift_still[k] and not still else self._rest_onto.get((int(i), int(j)))
-            for k, (i, j) in enumerate(ends)
-        ]
-        ks = np.array([k for k, rows in enumerate(found) if rows is not None], dtype=np.int64)
+        ks = np.flatnonzero(
+            (still | ~self._shift_still) & _has_cells(self._onto_codes, ends.reshape(-1, 2))
+        )
         if ks.size:
             clear = np.all(self.clear(q + self._shift_path[ks], self._shift_reach[ks]), axis=1)
             for k in ks[clear]:
-                rows = found[int(k)]
-                assert rows is not None
+                rows = self._rest_onto[(int(ends[k, 0]), int(ends[k, 1]))]
                 out.extend((float(self._shift_time[k]), (int(k),), int(row)) for row in rows)
         _remember(self._direct_ways, key, out)
         return out
@@ -469,8 +495,7 @@ class Capture:
         out: list[_Way] = []
         plain = np.flatnonzero(~self._shift_still)
         starts = np.asarray(cell, dtype=np.int64) - self._shift_cells[plain]
-        found = [self._rest.get((int(i), int(j))) for i, j in starts]
-        sel = np.array([n for n, rows in enumerate(found) if rows is not None], dtype=np.int64)
+        sel = np.flatnonzero(_has_cells(self._rest_codes, starts.reshape(-1, 2)))
         if sel.size:
             q = self.origin + starts[sel] * self.grid
             ks = plain[sel]
@@ -478,8 +503,7 @@ class Capture:
                 self.clear(q[:, None, :] + self._shift_path[ks], self._shift_reach[ks]), axis=1
             )
             for n in sel[clear]:
-                rows = found[int(n)]
-                assert rows is not None
+                rows = self._rest[(int(starts[n, 0]), int(starts[n, 1]))]
                 k = int(plain[n])
                 out.extend((float(self._shift_time[k]), (k,), int(row)) for row in rows)
         out.sort()
