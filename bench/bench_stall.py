@@ -7,9 +7,10 @@ stall the control loop for its whole call. This runs one trial of
 ``examples/campaigns/random_pairs.yaml`` (library, trees, the online start's design,
 the run) on a worker thread once to warm up, then again while the main thread sleeps
 1 ms at a time, and prints the largest gap between its wake-ups, its 99.9th percentile
-and the trial's wall time.
+and the trial's wall time. The worker limits its verifications to one thread, as the
+ROS node's planning thread does (``--batch-threads 0``: split over every core).
 
-    OPENBLAS_NUM_THREADS=1 python bench/bench_stall.py [--trial 5]
+    OPENBLAS_NUM_THREADS=1 python bench/bench_stall.py [--trial 5] [--batch-threads 1]
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ import numpy as np
 
 from gracenav.campaign import load_campaign
 from gracenav.campaign.runner import trial_result
+from gracenav.sim import limit_batch_threads
 
 PAIRS = Path(__file__).resolve().parent.parent / "examples" / "campaigns" / "random_pairs.yaml"
 
@@ -35,6 +37,13 @@ PAIRS = Path(__file__).resolve().parent.parent / "examples" / "campaigns" / "ran
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trial", type=int, default=5, help="random pairs trial (default 5)")
+    ap.add_argument(
+        "--batch-threads",
+        type=int,
+        default=1,
+        help="threads the worker's verifications may split over (default 1, as the ROS "
+        "node's planning thread; 0: one per core)",
+    )
     args = ap.parse_args()
     campaign = load_campaign(PAIRS)
     doc = dict(campaign.scenario)
@@ -48,6 +57,7 @@ def main() -> None:
     took: list[float] = []
 
     def work() -> None:
+        limit_batch_threads(args.batch_threads or None)
         t0 = time.perf_counter()
         trial_result(campaign, args.trial, "gracenav")
         took.append(time.perf_counter() - t0)

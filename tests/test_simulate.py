@@ -15,6 +15,7 @@ from gracenav.sim import (
     Reference,
     SimulationOptions,
     StateJump,
+    limit_batch_threads,
     simulate,
     simulate_batch,
     state_from_position,
@@ -148,6 +149,93 @@ def test_drag_moves_the_robot_with_the_anchor() -> None:
     assert p[n, 3] == pytest.approx(0.3, abs=0.1)
     # Released, it returns toward its reference.
     assert abs(p[-1, 1]) < p[n, 1]
+
+
+def test_a_batch_split_over_threads_equals_it_on_one(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A batch split over kernel threads gives each run's result to the bit, with
+    per-run noise, a push and a monitored domain; a thread limited to one runs it
+    whole. Three cores are pretended, so that the split happens on any machine."""
+    import threading
+
+    from gracenav import _kernels
+    from gracenav.sim import closed_loop
+
+    monkeypatch.setattr(closed_loop, "_cores", lambda: 3)
+    parts: list[tuple[str, int]] = []
+    kernel = _kernels.closed_loop
+
+    def counted(*args: object) -> None:
+        x0 = args[8]
+        assert isinstance(x0, np.ndarray)
+        parts.append((threading.current_thread().name, x0.shape[0]))
+        kernel(*args)
+
+    monkeypatch.setattr(_kernels, "closed_loop", counted)
+    rng = np.random.default_rng(5)
+    x0 = state_from_position(rng.uniform(-0.05, 0.05, (40, 4)), R)
+    ref = Reference.hold((0.0, 0.0), 0.5)
+    center = np.zeros((ref.num_ticks + 1, 4))
+    shape = np.broadcast_to(np.diag([150.0, 150.0, 25.0, 25.0]), (ref.num_ticks + 1, 4, 4))
+    kwargs = {
+        "disturbances": [Push(time=0.1, impulse=(3.0, -2.0))],
+        "options": SimulationOptions(position_noise_std=0.001, seed=4),
+        "monitor": (center, np.ascontiguousarray(shape)),
+        "record": True,
+    }
+    split = simulate_batch(x0, ref, **kwargs)  # type: ignore[arg-type]
+    assert sorted(n for _, n in parts) == [13, 13, 14]
+    assert all(name.startswith("gracenav-closed-loop") for name, _ in parts)
+    parts.clear()
+    whole: list[object] = []
+
+    def alone() -> None:
+        limit_batch_threads(1)
+        whole.append(simulate_batch(x0, ref, **kwargs))  # type: ignore[arg-type]
+
+    t = threading.Thread(target=alone)
+    t.start()
+    t.join(timeout=600)
+    assert [n for _, n in parts] == [40]
+    one = whole[0]
+    for field in ("states", "final_states", "max_lean", "max_torque", "max_domain_value"):
+        np.testing.assert_array_equal(getattr(split, field), getattr(one, field), err_msg=field)
+    np.testing.assert_array_equal(split.exit_tick, one.exit_tick)
+    assert np.any(split.exit_tick >= 0) and np.any(split.exit_tick < 0)
+    with pytest.raises(ConfigError, match="positive integer"):
+        limit_batch_threads(0)
+
+
+def _batch_in_child(x0: np.ndarray, out: object) -> None:
+    out.put(simulate_batch(x0, Reference.hold((0.0, 0.0), 0.2)).final_states)  # type: ignore[attr-defined]
+
+
+def test_a_forked_child_splits_its_batches_on_its_own_threads(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A process forked after the kernel threads started (a campaign's or a palette
+    build's workers) starts its own: the parent's do not exist in the child, and a batch
+    handed to them would wait forever."""
+    import multiprocessing
+
+    from gracenav.sim import closed_loop
+
+    if "fork" not in multiprocessing.get_all_start_methods():
+        pytest.skip("no fork on this platform")
+    monkeypatch.setattr(closed_loop, "_cores", lambda: 2)
+    x0 = state_from_position(np.random.default_rng(6).uniform(-0.05, 0.05, (32, 4)), R)
+    here = simulate_batch(x0, Reference.hold((0.0, 0.0), 0.2)).final_states
+    assert closed_loop._POOL is not None  # the parent's threads exist
+    ctx = multiprocessing.get_context("fork")
+    out = ctx.Queue()
+    child = ctx.Process(target=_batch_in_child, args=(x0, out))
+    child.start()
+    try:
+        there = out.get(timeout=120)  # hang guard
+    finally:
+        child.join(timeout=30)
+        if child.is_alive():
+            child.kill()
+    np.testing.assert_array_equal(there, here)
 
 
 def test_sensor_noise_is_seeded() -> None:

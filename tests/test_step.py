@@ -218,18 +218,22 @@ def test_modelled_latency_captures_land_later_and_still_catch(room) -> None:  # 
 def test_threaded_planning_never_waits_in_step(room, monkeypatch) -> None:  # type: ignore[no-untyped-def]
     """A capture computed on the worker thread while step keeps returning commands:
     the worker is held until 200 ticks after the push (released by the loop itself), so
-    a step that waited for it would stall for the worker's 30 s timeout."""
+    a step that waited for it would stall for the worker's 30 s timeout. The worker
+    splits no verification over the cores, which the loop needs."""
     import threading
     import time
 
     from gracenav.execution import EventReason
+    from gracenav.sim import closed_loop
 
     lib, graph = room
     hc = HybridController(lib, graph)
     release = threading.Event()
     plan = hc.capture_plan
+    batch_threads: list[int] = []
 
     def held_plan(x, tree):  # type: ignore[no-untyped-def]
+        batch_threads.append(closed_loop._kernel_threads(1 << 20))
         assert release.wait(30.0)
         return plan(x, tree)
 
@@ -260,6 +264,8 @@ def test_threaded_planning_never_waits_in_step(room, monkeypatch) -> None:  # ty
     # have waited the worker's whole 30 s (it is released only by later steps). A hang
     # guard, not a timing: how fast a step is belongs in bench/bench_step.py.
     assert slowest < 10.0
+    assert batch_threads and set(batch_threads) == {1}
+    assert closed_loop._kernel_threads(1 << 20) == closed_loop._cores()  # this thread
     assert cmd.done and cmd.status is TaskStatus.GOAL_REACHED
     log = hc.log()
     assert any(e.reason is EventReason.CAPTURE for e in log.events) or any(

@@ -57,7 +57,7 @@ from gracenav.planning import CostCriterion, LazyPolicyTree, PolicyTree, plan_tr
 from gracenav.planning.graph import PreparesGraph
 from gracenav.planning.repair import HOLD_MARGIN
 from gracenav.policies import PrimitiveKind, flat_position_state
-from gracenav.sim import Disturbance, position_state
+from gracenav.sim import Disturbance, limit_batch_threads, position_state
 from gracenav.sim.plant import Plant
 from gracenav.world.moving import MovingObstacle
 
@@ -138,7 +138,13 @@ class HybridController:
         started on first use and stopped by :meth:`close` (or when the controller is
         collected)."""
         if self._executor is None:
-            self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="gracenav-plan")
+            # It plans beside the control loop: its verifications keep to one core.
+            self._executor = ThreadPoolExecutor(
+                max_workers=1,
+                thread_name_prefix="gracenav-plan",
+                initializer=limit_batch_threads,
+                initargs=(1,),
+            )
             weakref.finalize(self, self._executor.shutdown, wait=False)
         return self._executor
 

@@ -305,7 +305,9 @@ class NavigatorCore:
 
     def _plan(self, goals: list[FloatArray], loops: int, x0: FloatArray) -> None:
         from gracenav.execution import ExecutionOptions, HybridController
+        from gracenav.sim import limit_batch_threads
 
+        limit_batch_threads(1)  # it plans beside the control callback: one core
         t0 = time.perf_counter()
         hc = HybridController(self.library, self.graph, criterion=self.options.cost)
         opts = ExecutionOptions(

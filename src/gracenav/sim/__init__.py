@@ -19,6 +19,7 @@ if TYPE_CHECKING:
         SimulationOptions,
         SimulationResult,
         StopReason,
+        limit_batch_threads,
         simulate,
         simulate_batch,
     )
@@ -51,6 +52,7 @@ _LAZY = {
     "SimulationResult": "gracenav.sim.closed_loop",
     "StateJump": "gracenav.sim.disturbances",
     "StopReason": "gracenav.sim.closed_loop",
+    "limit_batch_threads": "gracenav.sim.closed_loop",
     "make_plant": "gracenav.sim.plant",
     "position_state": "gracenav.sim.state",
     "simulate": "gracenav.sim.closed_loop",
@@ -76,6 +78,7 @@ __all__ = [
     "SimulationResult",
     "StateJump",
     "StopReason",
+    "limit_batch_threads",
     "make_plant",
     "position_state",
     "simulate",

@@ -12,8 +12,12 @@ States are x = [θ_x, θ_y, φ_x, φ_y, θ̇_x, θ̇_y, φ̇_x, φ̇_y] (see
 from __future__ import annotations
 
 import enum
+import itertools
 import math
+import os
+import threading
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -34,6 +38,7 @@ __all__ = [
     "SimulationOptions",
     "SimulationResult",
     "StopReason",
+    "limit_batch_threads",
     "simulate",
     "simulate_batch",
 ]
@@ -260,6 +265,75 @@ def _noise(options: SimulationOptions, runs: int, nt: int) -> FloatArray:
     return rng.standard_normal((runs, nt + 1, 4)) * std
 
 
+#: Runs of a batch per kernel thread, at least: a batch of fewer than twice as many runs
+#: runs on the calling thread (one run's loop is not split).
+RUNS_PER_THREAD = 8
+_POOL: ThreadPoolExecutor | None = None
+_POOL_LOCK = threading.Lock()
+
+
+def _cores() -> int:
+    """Cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+_LOCAL = threading.local()
+
+
+def limit_batch_threads(threads: int | None) -> None:
+    """Run the batches :func:`simulate_batch` starts from the calling thread on at most
+    ``threads`` threads (None: one per core, the default).
+
+    A batch of many runs (a verification) is split over the cores this process may run
+    on, each part on its own thread (the compiled loop releases the GIL; the results
+    do not depend on the split). A thread that plans beside a control loop (the hybrid
+    controller's ``planning="threaded"`` worker) limits itself to one, leaving the
+    other cores to the loop.
+
+    Raises
+    ------
+    ConfigError
+        If ``threads`` is not a positive integer or None.
+    """
+    if threads is not None and (
+        isinstance(threads, bool) or not isinstance(threads, int) or threads < 1
+    ):
+        raise ConfigError(f"threads must be a positive integer or None, got {threads!r}")
+    _LOCAL.threads = threads
+
+
+def _kernel_threads(runs: int) -> int:
+    """Threads a batch of ``runs`` is split over: one per core this process may run on
+    (at most the calling thread's :func:`limit_batch_threads`), at most one per
+    :data:`RUNS_PER_THREAD` runs."""
+    limit = getattr(_LOCAL, "threads", None)
+    cores = _cores() if limit is None else min(limit, _cores())
+    return max(1, min(cores, runs // RUNS_PER_THREAD))
+
+
+def _forget_pool() -> None:
+    """In a forked child: the parent's kernel threads do not exist there."""
+    global _POOL, _POOL_LOCK
+    _POOL = None
+    _POOL_LOCK = threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_pool)
+
+
+def _pool() -> ThreadPoolExecutor:
+    """The process's kernel threads, one per core (created on first use)."""
+    global _POOL
+    with _POOL_LOCK:
+        if _POOL is None:
+            _POOL = ThreadPoolExecutor(_cores(), thread_name_prefix="gracenav-closed-loop")
+        return _POOL
+
+
 def _run_kernel(
     x0: FloatArray,
     reference: Reference,
@@ -291,7 +365,9 @@ def _run_kernel(
     inputs = np.zeros((nb, nt + 1, 2) if record else (nb, 0, 2))
     summary = np.zeros((nb, 7))
     final = np.zeros((nb, 8))
-    _kernels.closed_loop(
+    starts = np.ascontiguousarray(x0, dtype=float)
+    noise = _noise(options, nb, nt)
+    constants = (
         _model_constants(plant_params),
         friction_constants(plant_params),
         _model_constants(gains.params),
@@ -300,27 +376,43 @@ def _run_kernel(
         gains.max_lean_compensation,
         gains.friction_compensation,
         plant_params.torque_limit,
-        np.ascontiguousarray(x0, dtype=float),
-        reference.states,
-        reference.inputs,
-        reference.dt,
-        options.substeps,
-        _noise(options, nb, nt),
-        force,
-        impulse,
-        jump,
-        tether,
-        tgains,
-        centers,
-        shapes,
-        stop_on_exit,
-        float(options.fall_lean),
-        record,
-        states,
-        inputs,
-        summary,
-        final,
     )
+
+    def runs(a: int, b: int) -> None:
+        """Runs a..b-1 of the batch, into their rows of the outputs (the kernel
+        releases the GIL; each run depends on its own start and noise only)."""
+        _kernels.closed_loop(
+            *constants,
+            starts[a:b],
+            reference.states,
+            reference.inputs,
+            reference.dt,
+            options.substeps,
+            noise if noise.shape[0] == 1 else noise[a:b],
+            force,
+            impulse,
+            jump,
+            tether,
+            tgains,
+            centers,
+            shapes,
+            stop_on_exit,
+            float(options.fall_lean),
+            record,
+            states[a:b],
+            inputs[a:b],
+            summary[a:b],
+            final[a:b],
+        )
+
+    threads = _kernel_threads(nb)
+    if threads == 1:
+        runs(0, nb)
+    else:
+        bounds = np.linspace(0, nb, threads + 1).round().astype(int)
+        jobs = [_pool().submit(runs, a, b) for a, b in itertools.pairwise(bounds.tolist())]
+        for job in jobs:
+            job.result()
     return states, inputs, summary, final
 
 
@@ -423,7 +515,9 @@ def simulate_batch(
     """Simulate many closed-loop runs from the initial states ``x0`` (B, 8) at once.
 
     Same arguments as :func:`simulate` (model3d plant only). ``record`` keeps the
-    full state histories.
+    full state histories. A batch of at least twice :data:`RUNS_PER_THREAD` runs is
+    split over the cores (:func:`limit_batch_threads`); each run's result is the same
+    as alone.
     """
     x = _check_state(x0, batch=True)
     gains = gains if gains is not None else design_gains(params)
