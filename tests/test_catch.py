@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gracenav.errors import PlanningError
 from gracenav.execution import CAPTURE, EventReason, ExecutionOptions, HybridController
 from gracenav.execution.capture import PlacedPolicy, capture_for
 from gracenav.library import build_library
@@ -383,6 +384,11 @@ def test_two_shifts_lead_onto_the_lattice_where_one_cannot(palette) -> None:  # 
     # drawn, in the room's upper left corner, ends on one without).
     state, plan = next((s, p) for s, p in chained if np.isfinite(tree.cost_to_go[p.rest_row]))
     r = robot.palette.params.ball_radius
+    # From that first one the task is refused, and the reason says why: the catch fits,
+    # its ways lead nowhere.
+    lost = next(s for s, p in chained if not np.isfinite(tree.cost_to_go[p.rest_row]))
+    with pytest.raises(PlanningError, match="reach from it have no way to the goal"):
+        robot.reset(state_from_position(lost, r), [(5.0, 5.0, 0.0, 0.0)])
     ep = robot.run(
         state_from_position(state, r),
         [(5.0, 5.0, 0.0, 0.0)],

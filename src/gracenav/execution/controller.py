@@ -262,12 +262,15 @@ class HybridController:
                     return np.asarray(q, dtype=float)
         return here
 
-    def capture_plan(self, x: ArrayLike, tree: PolicyTree | LazyPolicyTree) -> CapturePlan | None:
+    def capture_plan(
+        self, x: ArrayLike, tree: PolicyTree | LazyPolicyTree | None
+    ) -> CapturePlan | None:
         """The cheapest verified capture (catch, shift, rest trim toward the tree's goal)
         of the model state ``x`` (8,), or None (see :class:`gracenav.execution.capture.Capture`).
         Settled and still catches are considered when the lean and lean rate (norms
         over both axes) are within their band of upright; the pushed ones test the
-        flat output's position state (catches start upright)."""
+        flat output's position state (catches start upright). ``tree`` None: any
+        verified capture, whether or not its rest trim has a way to a goal."""
         capture = capture_for(self.library)
         xs = np.asarray(x, dtype=float)
         p = position_state(xs, self.params.ball_radius)
@@ -283,7 +286,7 @@ class HybridController:
         return capture.plan(
             p,
             lean_deviation=deviation,
-            cost_to_go=tree.cost_to_go,
+            cost_to_go=None if tree is None else tree.cost_to_go,
             settle=settle,
             flat_state=flat,
         )
@@ -615,7 +618,14 @@ class HybridController:
             _, plan, current = min(starts, key=lambda s: s[0])
         if current < 0 and plan is None:
             hits = self.library.start_domain_contains(p[None, :])
-            if hits.nnz == 0:
+            if hits.nnz == 0 and options.capture and self.capture_plan(x, None) is not None:
+                why = (
+                    "no library policy's start domain contains the start state, and the rest "
+                    "trims that a catch and at most two shifts with their swept outer domains "
+                    "clear reach from it have no way to the goal (near walls a rest trim may "
+                    "have no way out that fits); move the start or use more lattice halvings"
+                )
+            elif hits.nnz == 0:
                 why = (
                     "no library policy's start domain contains the start state, and no catch "
                     "placed there clears the obstacles (outside coverage)"
