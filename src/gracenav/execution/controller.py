@@ -618,7 +618,8 @@ class HybridController:
             _, plan, current = min(starts, key=lambda s: s[0])
         if current < 0 and plan is None:
             hits = self.library.start_domain_contains(p[None, :])
-            if hits.nnz == 0 and options.capture and self.capture_plan(x, None) is not None:
+            caught = options.capture and dyn is None  # a catch at the start was tried
+            if hits.nnz == 0 and caught and self.capture_plan(x, None) is not None:
                 why = (
                     "no library policy's start domain contains the start state, and the rest "
                     "trims that a catch and at most two shifts with their swept outer domains "
@@ -632,7 +633,7 @@ class HybridController:
                 )
             else:
                 why = "the goal cannot be reached from any policy whose start domain contains it"
-                if options.capture and dyn is None:
+                if caught:
                     why += (
                         ", nor from a rest trim of the library that a catch and at most two "
                         "shifts reach from the start with their swept outer domains clear (near "
