@@ -387,6 +387,102 @@ def test_point_to_point_paths_cost_the_trees_cost_to_go() -> None:
         plan_path(graph, len(lib), goal)
 
 
+def detour_library_graph():  # type: ignore[no-untyped-def]
+    """The synthetic palette of :func:`small_library_graph` on an 8 m x 4 m room split
+    by a wall with one gap at its north end: ways between the halves detour."""
+    lib, _ = small_library_graph()
+    wmap = load_map(
+        {
+            "bounds": [[0.0, 0.0], [8.0, 4.0]],
+            "obstacles": [{"rectangle": {"min": [3.9, 0.0], "max": [4.1, 2.8]}}],
+            "resolution": 0.05,
+        }
+    )
+    lib = build_library(lib.palette, wmap, footprint_radius=0.05, max_halvings=0)
+    return lib, build_graph(lib)
+
+
+def points_cost_to_go_by_scipy(graph, cost: str, goal: int) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """The point cost-to-go of :func:`plan_path`'s heuristic, computed independently:
+    scipy's Dijkstra on a graph over lattice points with an edge p -> p + o for every
+    library policy (at p, of a type with successors and end offset o != 0), costing
+    the cheapest type with that offset anywhere."""
+    e = graph.lattice_edges
+    ny, nx = e.lattice_shape
+    type_cost = graph.type_cost(cost)
+    moving = (np.diff(e.succ_ptr) > 0) & np.any(e.offset != 0, axis=1)
+    cheapest: dict[tuple[int, int], float] = {}
+    for t in np.flatnonzero(moving):
+        o = (int(e.offset[t, 0]), int(e.offset[t, 1]))
+        cheapest[o] = min(cheapest.get(o, np.inf), float(type_cost[t]))
+    pairs: dict[tuple[int, int], float] = {}
+    for t, p in zip(e.row_type, e.row_point, strict=True):
+        if not moving[t]:
+            continue
+        ox, oy = (int(v) for v in e.offset[t])
+        x, y = int(p) % nx + ox, int(p) // nx + oy
+        if 0 <= x < nx and 0 <= y < ny:
+            pairs[(int(p), y * nx + x)] = cheapest[(ox, oy)]
+    src, dst = np.array(list(pairs)).T
+    adj = scipy.sparse.csr_matrix((list(pairs.values()), (src, dst)), shape=(nx * ny, nx * ny))
+    goal_point = int(e.row_point[goal])
+    return np.asarray(csgraph.dijkstra(adj.T.tocsr(), indices=goal_point))
+
+
+@pytest.mark.parametrize("where", ["room", "detour"])
+def test_the_point_heuristic_is_a_consistent_lower_bound(where: str) -> None:
+    """plan_path's bound from the lattice points: run to the end it is scipy's Dijkstra
+    on the point graph (an independent construction); stopped at a start it is below
+    every policy's cost-to-go (plan_tree's) and consistent along every edge."""
+    from gracenav.planning.trees import _points_heuristic
+
+    lib, graph = small_library_graph() if where == "room" else detour_library_graph()
+    e = graph.lattice_edges
+    trims = lib.trim_indices()
+    rng = np.random.default_rng(12)
+    for cost in ("time", "distance"):
+        type_cost = np.ascontiguousarray(graph.type_cost(cost))
+        node_cost = graph.node_cost(cost)
+        adj = graph.csr(cost)
+        src = np.repeat(np.arange(len(lib)), np.diff(adj.indptr))
+        for goal in rng.choice(trims, 3, replace=False):
+            whole = _points_heuristic(graph, type_cost, np.arange(len(lib)), int(goal))
+            want = points_cost_to_go_by_scipy(graph, cost, int(goal)) * (1.0 - 1e-9)
+            used = np.unique(e.row_point)
+            np.testing.assert_allclose(whole[used], want[used], rtol=1e-12)
+            tree = plan_tree(graph, int(goal), criterion=cost)
+            for start in (np.arange(len(lib)), rng.choice(len(lib), 1)):
+                h = _points_heuristic(graph, type_cost, start, int(goal))[e.row_point]
+                assert np.all(h <= tree.cost_to_go)
+                assert np.all(np.isinf(tree.cost_to_go[np.isinf(h)]))
+                step = node_cost[src] + h[adj.indices]
+                assert np.all((h[src] <= step) | np.isclose(h[src], step, rtol=1e-12, atol=0))
+
+
+def test_paths_around_a_wall_expand_less_with_the_point_heuristic(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Across the wall of the detour room the lattice points' bound cuts A*'s work (the
+    gauge alone sees the straight line), and the path still costs the tree's
+    cost-to-go."""
+    import gracenav.planning.trees as trees
+
+    lib, graph = detour_library_graph()
+    trims = lib.trim_indices()
+    xy = lib.start_xy[trims]
+    west = trims[np.argmin(np.hypot(xy[:, 0] - 3.0, xy[:, 1] - 0.5))]
+    east = trims[np.argmin(np.hypot(xy[:, 0] - 5.0, xy[:, 1] - 0.5))]
+    tree = plan_tree(graph, int(east))
+    assert np.isfinite(tree.cost_to_go[west])
+    path = plan_path(graph, int(west), int(east))
+    np.testing.assert_allclose(path.cost, tree.cost_to_go[west], rtol=1e-12, atol=1e-12)
+    real = trees._points_heuristic
+    monkeypatch.setattr(trees, "_points_heuristic", lambda g, c, s, q: 0.0 * real(g, c, s, q))
+    gauge_only = plan_path(graph, int(west), int(east))
+    assert gauge_only.cost == path.cost
+    assert path.expanded < 0.5 * gauge_only.expanded
+
+
 def test_a_replan_joining_an_earlier_path_costs_the_trees_cost_to_go() -> None:
     """With ``via`` (an optimal path to the goal), A* stops where joining it is
     cheapest: still the tree's cost-to-go, and the path follows ``via`` from there."""

@@ -835,6 +835,7 @@ def _astar(
     type_cost: Any,
     h_x: Any,
     h_y: Any,
+    h_point: Any,
     g_cost: Any,
     parent: Any,
     row_type: Any,
@@ -855,7 +856,8 @@ def _astar(
     The heuristic of policy i is max(0, max_f h_x[f] Δx + h_y[f] Δy) for the lattice
     displacement (Δx, Δy) (cells) from its start point to the goal's: the gauge of the
     polygon of (end offset / cost) of the policies, a lower bound of the cost-to-go that
-    is consistent (see :func:`gracenav.planning.plan_path`). Fills
+    is consistent (see :func:`gracenav.planning.plan_path`), or ``h_point`` of its start
+    point where that is larger (:func:`_points_cost_to_go`, also consistent). Fills
     ``g_cost`` (cost from the nearest start, inf where not reached) and ``parent``
     (−1 at the starts); returns (status, policies expanded, row where the search
     joined a known path, −1 if none).
@@ -884,7 +886,7 @@ def _astar(
         g_cost[s] = 0.0
         py = row_point[s] // nx
         px = row_point[s] - py * nx
-        f = _gauge(gx - px, gy - py, h_x, h_y)
+        f = max(_gauge(gx - px, gy - py, h_x, h_y), h_point[row_point[s]])
         hf, hg, hn, size = _push(hf, hg, hn, size, f, 0.0, s)
     expanded = 0
     while size > 0:
@@ -931,9 +933,97 @@ def _astar(
                 parent[j] = i
                 py = row_point[j] // nx
                 px = row_point[j] - py * nx
-                f = d + _gauge(gx - px, gy - py, h_x, h_y)
+                f = d + max(_gauge(gx - px, gy - py, h_x, h_y), h_point[row_point[j]])
                 hf, hg, hn, size = _push(hf, hg, hn, size, f, -d, j)
     return _DONE, expanded, -1
+
+
+# The heuristic of plan_path on maps whose ways detour: a search over lattice points
+# (not policies) in which a point moves by the end offset of any policy type that has a
+# policy there, at that offset's cheapest cost (see PreparesGraph.point_moves).
+@njit(cache=True, nogil=True)
+def _point_move_mask(row_type: Any, row_point: Any, type_move: Any, points: int, words: int) -> Any:
+    """Bit k of ``mask[p, k // 64]`` is set iff some library row at point p is of a type
+    whose move (``type_move``, −1 for none) is k."""
+    mask = np.zeros((points, words), np.uint64)
+    for r in range(row_type.size):
+        k = type_move[row_type[r]]
+        if k >= 0:
+            mask[row_point[r], k >> 6] |= np.uint64(1) << np.uint64(k & 63)
+    return mask
+
+
+@njit(cache=True, nogil=True)
+def _points_cost_to_go(
+    goal_point: int,
+    start_points: Any,
+    nx: int,
+    ny: int,
+    mask: Any,
+    move_dx: Any,
+    move_dy: Any,
+    move_cost: Any,
+    dist: Any,
+) -> int:
+    """Dijkstra from the goal point backward over the point moves; fills ``dist`` (one
+    entry per lattice point) with a lower bound of the cost-to-go of every policy that
+    starts there, and returns the points settled.
+
+    A point q is reached from p = q − move k iff bit k of ``mask[p]`` is set, at
+    ``move_cost[k]`` (>= 0). The search stops once every start point is settled, at
+    cost R: the points it settled keep their exact point cost-to-go, the others get R
+    (theirs is at least R), or inf if the search ran out of points (none leads to the
+    goal). Both are consistent bounds: through any library edge i → j, from point p to
+    q by i's move, dist[p] <= move_cost + dist[q] <= cost(i) + dist[q]."""
+    points = nx * ny
+    for p in range(points):
+        dist[p] = np.inf
+    settled = np.zeros(points, np.bool_)
+    pending = np.zeros(points, np.bool_)
+    waiting = 0
+    for p in start_points:
+        if not pending[p]:
+            pending[p] = True
+            waiting += 1
+    hf = np.empty(1024, np.float64)
+    hg = np.empty(1024, np.float64)
+    hn = np.empty(1024, np.int64)
+    size = 0
+    dist[goal_point] = 0.0
+    hf, hg, hn, size = _push(hf, hg, hn, size, 0.0, 0.0, goal_point)
+    done = 0
+    radius = np.inf
+    while size > 0:
+        q = hn[0]
+        dq = hf[0]
+        size = _pop(hf, hg, hn, size)
+        if settled[q] or dq > dist[q]:
+            continue
+        settled[q] = True
+        done += 1
+        if pending[q]:
+            waiting -= 1
+            if waiting == 0:
+                radius = dq
+                break
+        qy = q // nx
+        qx = q - qy * nx
+        for k in range(move_dx.size):
+            px = qx - move_dx[k]
+            py = qy - move_dy[k]
+            if px < 0 or px >= nx or py < 0 or py >= ny:
+                continue
+            p = py * nx + px
+            if settled[p] or not (mask[p, k >> 6] >> np.uint64(k & 63)) & np.uint64(1):
+                continue
+            d = dq + move_cost[k]
+            if d < dist[p]:
+                dist[p] = d
+                hf, hg, hn, size = _push(hf, hg, hn, size, d, 0.0, p)
+    for p in range(points):
+        if not settled[p]:
+            dist[p] = radius
+    return done
 
 
 # The resumable goal-directed tree (gracenav.planning.LazyPolicyTree): a backward A*

@@ -64,6 +64,7 @@ from gracenav.planning._search import (
     _count_edges,
     _count_rows_edges,
     _fill_edges,
+    _point_move_mask,
     _successors_of,
 )
 
@@ -378,6 +379,42 @@ class PreparesGraph:
             out = sparse.csc_matrix((data, indices, indptr), shape=(n, n), copy=False)
             out.has_sorted_indices = True
             self._cache[f"csc-{cost}"] = out
+        return out
+
+    def point_moves(self) -> tuple[NDArray[np.uint64], IntArray, IntArray, IntArray]:
+        """How a lattice point can move along the graph's edges, built on first use and
+        kept (8 bytes per lattice point for up to 64 moves).
+
+        A *move* is a nonzero end offset of a policy type with successors: a policy
+        of that type at point p has its successors at p + the offset.
+
+        Returns
+        -------
+        mask : ndarray of uint64, shape (ny · nx, ⌈K / 64⌉)
+            Bit k of ``mask[p, k // 64]`` is set iff a library policy at point p (id
+            iy · nx + ix) makes move k.
+        move_dx, move_dy : ndarray of int64, shape (K,)
+            The moves in lattice cells.
+        type_move : ndarray of int64, shape (T,)
+            The move of each type; −1 for a type without successors or one that ends
+            where it starts.
+        """
+        out = self._cache.get("point-moves")
+        if out is None:
+            e = self.lattice_edges
+            ny, nx = e.lattice_shape
+            moving = (np.diff(e.succ_ptr) > 0) & np.any(e.offset != 0, axis=1)
+            moves, inverse = np.unique(e.offset[moving], axis=0, return_inverse=True)
+            type_move = np.full(e.offset.shape[0], -1, dtype=np.int64)
+            type_move[moving] = inverse.ravel()
+            words = max(1, -(-moves.shape[0] // 64))
+            mask = _point_move_mask(e.row_type, e.row_point, type_move, nx * ny, words)
+            out = self._cache["point-moves"] = (
+                mask,
+                np.ascontiguousarray(moves[:, 0], dtype=np.int64),
+                np.ascontiguousarray(moves[:, 1], dtype=np.int64),
+                type_move,
+            )
         return out
 
     def cached_csc(self, cost: CostName = "time") -> sparse.csc_matrix | None:
