@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import re
+import time
 from pathlib import Path
 
 import pytest
@@ -286,6 +287,29 @@ def test_unreachable_cluster_is_one_line(
     assert "\n" not in err
 
 
+def test_a_cluster_without_workers_stops_waiting(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A scheduler that never gets a worker does not keep the campaign waiting: after
+    CLUSTER_IDLE_S without one it stops with a one-line reason, the resume log in place."""
+    distributed = pytest.importorskip("distributed")
+    import gracenav.campaign.runner as runner
+
+    monkeypatch.setattr(runner, "CLUSTER_IDLE_S", 1.0)
+    monkeypatch.setattr(runner, "CLUSTER_CHECK_S", 0.1)
+    c = load_campaign(_tiny(tmp_path, TINY))
+    # In one process (inproc://), its HTTP server on loopback.
+    with distributed.LocalCluster(
+        n_workers=0, processes=False, dashboard_address="127.0.0.1:0"
+    ) as cluster:
+        t0 = time.monotonic()
+        with pytest.raises(ConfigError, match=r"no Dask worker for 1 s with 2 trials left") as err:
+            run_campaign(c, tmp_path / "out", cluster=cluster.scheduler_address)
+        assert time.monotonic() - t0 < 60.0  # a hang guard, not a timing target
+    assert "\n" not in str(err.value)
+    assert (tmp_path / "out" / "trials.jsonl").read_text() == ""
+
+
 @pytest.mark.slow
 def test_dask_cluster_equals_local_and_survives_a_dead_worker(tmp_path: Path) -> None:
     """A real local Dask cluster of two worker processes runs the campaign; one worker
@@ -299,8 +323,14 @@ def test_dask_cluster_equals_local_and_survives_a_dead_worker(tmp_path: Path) ->
     c = load_campaign(_tiny(tmp_path, text))
     local = run_campaign(c, tmp_path / "local", processes=1)
     with (
+        # Scheduler, workers and the scheduler's HTTP server on loopback only
+        # (dashboard_address=None would still serve its health routes on 0.0.0.0:8787).
         distributed.LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+            n_workers=2,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address="127.0.0.1:0",
         ) as cluster,
         distributed.Client(cluster) as client,
     ):

@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from gracenav.baseline import DecoupledOptions
     from gracenav.palette import Palette
 
-__all__ = ["CLUSTER_TIMEOUT_S", "run_campaign", "run_trial", "trial_result"]
+__all__ = ["CLUSTER_IDLE_S", "CLUSTER_TIMEOUT_S", "run_campaign", "run_trial", "trial_result"]
 
 _LOG = "trials.jsonl"
 _META = "campaign.json"
@@ -30,6 +30,11 @@ CLUSTER_TIMEOUT_S = 30.0
 """How long ``--cluster`` waits to connect to the Dask scheduler (s)."""
 #: Time (s) between two reads of the state of the trials running on a cluster.
 CLUSTER_POLL_S = 0.05
+CLUSTER_IDLE_S = 300.0
+"""How long ``--cluster`` waits with trials left while the scheduler has no worker, or
+cannot be reached, before it stops (s); the finished trials stay in the resume log."""
+#: Time (s) between two questions to the scheduler about its workers.
+CLUSTER_CHECK_S = 5.0
 
 _MEASURES = (
     "reached_goal",
@@ -358,19 +363,52 @@ def _run_on_cluster(
         # client's when the process has two (a campaign run beside a client of the same
         # cluster); as_completed then missed a future lost with its worker and waited
         # forever, and wait failed on an event bound to the other loop.
+        # A trial may run for minutes, so waiting is bounded by the workers, not by the
+        # trials: the loop stops once no worker has been connected (or the scheduler not
+        # reachable) for CLUSTER_IDLE_S.
         pending = futures
+        worker_seen = checked = time.monotonic()
         while pending:
             finished = [f for f in pending if f.done()]
             if not finished:
+                now = time.monotonic()
+                if now - checked >= CLUSTER_CHECK_S:
+                    checked = now
+                    if _has_workers(client):
+                        worker_seen = now
+                    elif now - worker_seen >= CLUSTER_IDLE_S:
+                        raise ConfigError(
+                            f"--cluster {address}: no Dask worker for {CLUSTER_IDLE_S:g} s with "
+                            f"{len(pending)} trials left (finished ones are kept); start workers "
+                            f"(dask worker {address}) and run the command again to resume"
+                        )
                 time.sleep(CLUSTER_POLL_S)
                 continue
             pending = [f for f in pending if f not in finished]
             for fut in finished:
+                if fut.cancelled():
+                    p, i = keys[fut.key]
+                    raise ConfigError(
+                        f"--cluster {address}: the scheduler dropped trial {i} of {p} (it "
+                        "restarted or the connection was lost); finished trials are kept: "
+                        "run the command again to resume"
+                    )
                 row = fut.result()
                 losses = client.run_on_scheduler(_task_losses, key=fut.key)
                 row["worker_losses"] = int(losses)
                 fut.release()
                 record(row)
+
+
+def _has_workers(client: Any) -> bool:
+    """Whether the scheduler of ``client`` has a worker now (False when it cannot be
+    asked)."""
+    if client.status != "running":
+        return False
+    try:
+        return bool(client.scheduler_info(n_workers=1).get("workers"))
+    except (OSError, TimeoutError):
+        return False
 
 
 def _task_losses(dask_scheduler: Any, key: str) -> int:
