@@ -402,11 +402,12 @@ def detour_library_graph():  # type: ignore[no-untyped-def]
     return lib, build_graph(lib)
 
 
-def points_cost_to_go_by_scipy(graph, cost: str, goal: int) -> np.ndarray:  # type: ignore[no-untyped-def]
-    """The point cost-to-go of :func:`plan_path`'s heuristic, computed independently:
-    scipy's Dijkstra on a graph over lattice points with an edge p -> p + o for every
-    library policy (at p, of a type with successors and end offset o != 0), costing
-    the cheapest type with that offset anywhere."""
+def points_cost_by_scipy(graph, cost: str, point: int, forward: bool) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """The point bounds of :func:`plan_path` and :class:`LazyPolicyTree`, computed
+    independently: scipy's Dijkstra to (or, ``forward``, from) ``point`` on a graph over
+    lattice points with an edge p -> p + o for every library policy (at p, of a type
+    with successors and end offset o != 0), costing the cheapest type with that offset
+    anywhere."""
     e = graph.lattice_edges
     ny, nx = e.lattice_shape
     type_cost = graph.type_cost(cost)
@@ -425,38 +426,65 @@ def points_cost_to_go_by_scipy(graph, cost: str, goal: int) -> np.ndarray:  # ty
             pairs[(int(p), y * nx + x)] = cheapest[(ox, oy)]
     src, dst = np.array(list(pairs)).T
     adj = scipy.sparse.csr_matrix((list(pairs.values()), (src, dst)), shape=(nx * ny, nx * ny))
-    goal_point = int(e.row_point[goal])
-    return np.asarray(csgraph.dijkstra(adj.T.tocsr(), indices=goal_point))
+    return np.asarray(csgraph.dijkstra(adj if forward else adj.T.tocsr(), indices=point))
 
 
 @pytest.mark.parametrize("where", ["room", "detour"])
-def test_the_point_heuristic_is_a_consistent_lower_bound(where: str) -> None:
-    """plan_path's bound from the lattice points: run to the end it is scipy's Dijkstra
-    on the point graph (an independent construction); stopped at a start it is below
-    every policy's cost-to-go (plan_tree's) and consistent along every edge."""
+def test_the_point_bounds_are_consistent_lower_bounds(where: str) -> None:
+    """The lattice points' bounds (to the goal, of plan_path; from the queries, of a
+    lazy tree): run to the end they are scipy's Dijkstra on the point graph (an
+    independent construction), the points it cannot reach at its largest cost; stopped
+    at a target they stay below every true cost (plan_tree's cost-to-go; scipy's
+    costs from a query on the policy graph) and are consistent along every edge."""
     from gracenav.planning.trees import _points_heuristic
 
     lib, graph = small_library_graph() if where == "room" else detour_library_graph()
     e = graph.lattice_edges
+    used = np.unique(e.row_point)
     trims = lib.trim_indices()
     rng = np.random.default_rng(12)
+    margin = 1.0 - 1e-9
     for cost in ("time", "distance"):
         type_cost = np.ascontiguousarray(graph.type_cost(cost))
         node_cost = graph.node_cost(cost)
         adj = graph.csr(cost)
         src = np.repeat(np.arange(len(lib)), np.diff(adj.indptr))
         for goal in rng.choice(trims, 3, replace=False):
-            whole = _points_heuristic(graph, type_cost, np.arange(len(lib)), int(goal))
-            want = points_cost_to_go_by_scipy(graph, cost, int(goal)) * (1.0 - 1e-9)
-            used = np.unique(e.row_point)
-            np.testing.assert_allclose(whole[used], want[used], rtol=1e-12)
-            tree = plan_tree(graph, int(goal), criterion=cost)
-            for start in (np.arange(len(lib)), rng.choice(len(lib), 1)):
-                h = _points_heuristic(graph, type_cost, start, int(goal))[e.row_point]
-                assert np.all(h <= tree.cost_to_go)
-                assert np.all(np.isinf(tree.cost_to_go[np.isinf(h)]))
-                step = node_cost[src] + h[adj.indices]
-                assert np.all((h[src] <= step) | np.isclose(h[src], step, rtol=1e-12, atol=0))
+            query = int(rng.choice(len(lib)))
+            for forward in (False, True):
+                ends = np.arange(len(lib))
+                if forward:  # from the query, stopped at the goal's point
+                    whole, cut = _points_heuristic(
+                        graph, type_cost, [query], int(goal), forward=True
+                    )
+                    want = points_cost_by_scipy(graph, cost, int(e.row_point[query]), True)
+                    target = want[e.row_point[goal]]
+                else:  # to the goal, from every point: run to the end
+                    whole, cut = _points_heuristic(graph, type_cost, ends, int(goal))
+                    want = points_cost_by_scipy(graph, cost, int(e.row_point[goal]), False)
+                    target = np.inf
+                    assert cut == np.isinf(want[used]).sum()
+                want = want * margin
+                # Settled points carry their cost; the others the cost where it stopped.
+                stop = np.max(want[np.isfinite(want)]) if np.isinf(target) else target * margin
+                want, got = want[used], whole[used]
+                below = want < stop
+                np.testing.assert_allclose(got[below], want[below], rtol=1e-12)
+                np.testing.assert_allclose(got[~below], stop, rtol=1e-12)
+                if forward:
+                    true = csgraph.dijkstra(adj, indices=query)
+                    h = whole[e.row_point]
+                    assert np.all(h <= true)
+                    step = h[src] + node_cost[src]  # h(j) <= h(i) + cost(i)
+                    lhs = h[adj.indices]
+                else:
+                    tree = plan_tree(graph, int(goal), criterion=cost)
+                    for start in (ends, [query]):
+                        h = _points_heuristic(graph, type_cost, start, int(goal))[0][e.row_point]
+                        assert np.all(h <= tree.cost_to_go)
+                    step = node_cost[src] + h[adj.indices]  # h(i) <= cost(i) + h(j)
+                    lhs = h[src]
+                assert np.all((lhs <= step) | np.isclose(lhs, step, rtol=1e-12, atol=0))
 
 
 def test_paths_around_a_wall_expand_less_with_the_point_heuristic(
@@ -477,7 +505,9 @@ def test_paths_around_a_wall_expand_less_with_the_point_heuristic(
     path = plan_path(graph, int(west), int(east))
     np.testing.assert_allclose(path.cost, tree.cost_to_go[west], rtol=1e-12, atol=1e-12)
     real = trees._points_heuristic
-    monkeypatch.setattr(trees, "_points_heuristic", lambda g, c, s, q: 0.0 * real(g, c, s, q))
+    monkeypatch.setattr(
+        trees, "_points_heuristic", lambda g, c, s, q, **kw: (0.0 * real(g, c, s, q)[0], 0)
+    )
     gauge_only = plan_path(graph, int(west), int(east))
     assert gauge_only.cost == path.cost
     assert path.expanded < 0.5 * gauge_only.expanded

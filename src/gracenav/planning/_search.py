@@ -955,8 +955,9 @@ def _point_move_mask(row_type: Any, row_point: Any, type_move: Any, points: int,
 
 @njit(cache=True, nogil=True)
 def _points_cost_to_go(
-    goal_point: int,
-    start_points: Any,
+    sources: Any,
+    targets: Any,
+    forward: bool,
     nx: int,
     ny: int,
     mask: Any,
@@ -965,23 +966,28 @@ def _points_cost_to_go(
     move_cost: Any,
     dist: Any,
 ) -> int:
-    """Dijkstra from the goal point backward over the point moves; fills ``dist`` (one
-    entry per lattice point) with a lower bound of the cost-to-go of every policy that
-    starts there, and returns the points settled.
+    """Dijkstra over the lattice points' moves from the ``sources`` (cost 0); fills
+    ``dist`` (one entry per lattice point) and returns how many target points it did
+    not settle (none can be reached).
 
-    A point q is reached from p = q − move k iff bit k of ``mask[p]`` is set, at
-    ``move_cost[k]`` (>= 0). The search stops once every start point is settled, at
-    cost R: the points it settled keep their exact point cost-to-go, the others get R
-    (theirs is at least R), or inf if the search ran out of points (none leads to the
-    goal). Both are consistent bounds: through any library edge i → j, from point p to
-    q by i's move, dist[p] <= move_cost + dist[q] <= cost(i) + dist[q]."""
+    Backward (``forward`` False; the source the goal's point): ``dist[p]`` bounds from
+    below the cost-to-go of every policy that starts at p. Forward (the sources the
+    queries' points): it bounds the cost from a query policy to every policy at p. A
+    point p moves to p + move k iff bit k of ``mask[p]`` is set, at ``move_cost[k]``
+    (>= 0). The search stops once every target point is settled, at cost R, or when it
+    runs out of points, R then its largest cost: the points it settled keep their exact
+    cost, the others get R (theirs is at least R, or inf: not inf itself, which would
+    leave a search keyed by it to close such policies in no order of cost). Both are
+    consistent bounds: through any library edge
+    i -> j, from point p to q by i's move, dist[p] <= move_cost + dist[q] (backward) and
+    dist[q] <= dist[p] + move_cost (forward), move_cost <= cost(i)."""
     points = nx * ny
     for p in range(points):
         dist[p] = np.inf
     settled = np.zeros(points, np.bool_)
     pending = np.zeros(points, np.bool_)
     waiting = 0
-    for p in start_points:
+    for p in targets:
         if not pending[p]:
             pending[p] = True
             waiting += 1
@@ -989,41 +995,47 @@ def _points_cost_to_go(
     hg = np.empty(1024, np.float64)
     hn = np.empty(1024, np.int64)
     size = 0
-    dist[goal_point] = 0.0
-    hf, hg, hn, size = _push(hf, hg, hn, size, 0.0, 0.0, goal_point)
-    done = 0
-    radius = np.inf
+    for p in sources:
+        if dist[p] != 0.0:
+            dist[p] = 0.0
+            hf, hg, hn, size = _push(hf, hg, hn, size, 0.0, 0.0, p)
+    radius = 0.0
     while size > 0:
-        q = hn[0]
-        dq = hf[0]
+        a = hn[0]
+        da = hf[0]
         size = _pop(hf, hg, hn, size)
-        if settled[q] or dq > dist[q]:
+        if settled[a] or da > dist[a]:
             continue
-        settled[q] = True
-        done += 1
-        if pending[q]:
+        settled[a] = True
+        radius = da
+        if pending[a]:
             waiting -= 1
             if waiting == 0:
-                radius = dq
                 break
-        qy = q // nx
-        qx = q - qy * nx
+        ay = a // nx
+        ax = a - ay * nx
         for k in range(move_dx.size):
-            px = qx - move_dx[k]
-            py = qy - move_dy[k]
-            if px < 0 or px >= nx or py < 0 or py >= ny:
+            if forward:
+                bx = ax + move_dx[k]
+                by = ay + move_dy[k]
+                mover = a
+            else:
+                bx = ax - move_dx[k]
+                by = ay - move_dy[k]
+                mover = by * nx + bx
+            if bx < 0 or bx >= nx or by < 0 or by >= ny:
                 continue
-            p = py * nx + px
-            if settled[p] or not (mask[p, k >> 6] >> np.uint64(k & 63)) & np.uint64(1):
+            b = by * nx + bx
+            if settled[b] or not (mask[mover, k >> 6] >> np.uint64(k & 63)) & np.uint64(1):
                 continue
-            d = dq + move_cost[k]
-            if d < dist[p]:
-                dist[p] = d
-                hf, hg, hn, size = _push(hf, hg, hn, size, d, 0.0, p)
+            d = da + move_cost[k]
+            if d < dist[b]:
+                dist[b] = d
+                hf, hg, hn, size = _push(hf, hg, hn, size, d, 0.0, b)
     for p in range(points):
         if not settled[p]:
             dist[p] = radius
-    return done
+    return waiting
 
 
 # The resumable goal-directed tree (gracenav.planning.LazyPolicyTree): a backward A*
@@ -1046,6 +1058,28 @@ def _query_gauge(
     return h if h > 0.0 else 0.0
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _query_bound(
+    row: Any,
+    cx: Any,
+    cy: Any,
+    r: Any,
+    row_point: Any,
+    nx: Any,
+    h_x: Any,
+    h_y: Any,
+    h_point: Any,
+) -> float:
+    """The heuristic of a lazy tree's row: :func:`_query_gauge`, or the queries' point
+    bound of its start point (``h_point``, empty for none) where that is larger."""
+    h = _query_gauge(row, cx, cy, r, row_point, nx, h_x, h_y)
+    if h_point.size:
+        hp = h_point[row_point[row]]
+        if hp > h:
+            return hp
+    return h
+
+
 @njit(cache=True, nogil=True)
 def _lazy_settle(
     goal: int,
@@ -1058,6 +1092,7 @@ def _lazy_settle(
     type_cost: Any,
     h_x: Any,
     h_y: Any,
+    h_point: Any,
     g: Any,
     dist: Any,
     nxt: Any,
@@ -1090,8 +1125,9 @@ def _lazy_settle(
     ``g`` holds tentative costs-to-go (inf where not reached), ``dist`` and ``nxt`` the
     final cost-to-go and next policy of closed rows, ``hf``, ``hg``, ``hn`` the open
     heap (``size`` entries). The heap is first re-keyed with the heuristic of the new
-    queries (the gauge from the nearest query point, (qx, qy) in cells: a consistent
-    lower bound of the cost from a query to a row) and cleaned of stale entries; then
+    queries (the gauge from the nearest query point, (qx, qy) in cells, or the
+    queries' point bound ``h_point`` where larger: consistent lower bounds of the cost
+    from a query to a row) and cleaned of stale entries; then
     rows are closed in order of g + h until every query row is closed (``best``: until
     the cheapest query row and every query row of equal cost are closed), the heap is
     empty (every row that reaches the goal is closed) or ``budget`` (>= 0) rows have
@@ -1125,7 +1161,7 @@ def _lazy_settle(
         gv = -hg[k]
         if closed[v] or gv > g[v]:
             continue
-        hf[m] = gv + _query_gauge(v, cx, cy, radius, row_point, nx, h_x, h_y)
+        hf[m] = gv + _query_bound(v, cx, cy, radius, row_point, nx, h_x, h_y, h_point)
         hg[m] = -gv
         hn[m] = v
         m += 1
@@ -1206,7 +1242,7 @@ def _lazy_settle(
             if d < g[u]:
                 g[u] = d
                 parent[u] = i
-                f = d + _query_gauge(u, cx, cy, radius, row_point, nx, h_x, h_y)
+                f = d + _query_bound(u, cx, cy, radius, row_point, nx, h_x, h_y, h_point)
                 hf, hg, hn, size = _push(hf, hg, hn, size, f, -d, u)
         if status == _NEGATIVE or (queries.size > 0 and remaining == 0):
             break  # (a row is closed only with its predecessors relaxed)

@@ -309,8 +309,8 @@ def plan_path(
     else:
         join_rows = np.array([goal], dtype=np.int64)
         join_cost = np.zeros(1, dtype=np.float64)
-    h_point = _points_heuristic(graph, type_cost, starts, goal)
-    if not np.any(np.isfinite(h_point[edges.row_point[starts]])):
+    h_point, cut_off = _points_heuristic(graph, type_cost, starts, goal)
+    if cut_off == np.unique(edges.row_point[starts]).size:
         # No sequence of the policies' moves leads from a start point to the goal's.
         return PolicyPath(np.zeros(0, np.int64), float("inf"), 0, crit)
     g_cost: FloatArray = np.empty(n, dtype=np.float64)
@@ -348,23 +348,33 @@ def plan_path(
 
 
 def _points_heuristic(
-    graph: PreparesGraph, type_cost: FloatArray, starts: IntArray, goal: int
-) -> FloatArray:
+    graph: PreparesGraph,
+    type_cost: FloatArray,
+    starts: IntArray,
+    goal: int,
+    *,
+    forward: bool = False,
+) -> tuple[FloatArray, int]:
     """A lower bound of the cost-to-go of the policies at each lattice point (see
-    :func:`plan_path`): zero everywhere when a cost is negative or NaN (the search
-    reports it) or no policy moves."""
+    :func:`plan_path`), or with ``forward`` of the cost from the nearest of ``starts``
+    to them (:class:`LazyPolicyTree`); zero everywhere when a cost is negative or NaN
+    (the search reports it) or no policy moves. Also returns how many of the target
+    points (the start points; forward, the goal's) no sequence of moves reaches."""
     edges = graph.lattice_edges
     ny, nx = edges.lattice_shape
     out: FloatArray = np.zeros(nx * ny, dtype=np.float64)
     mask, move_dx, move_dy, type_move = graph.point_moves()
     if not move_dx.size or not np.all(type_cost >= 0.0):
-        return out
+        return out, 0
     move_cost = np.full(move_dx.size, np.inf)
     moving = type_move >= 0
     np.minimum.at(move_cost, type_move[moving], type_cost[moving])
-    _points_cost_to_go(
-        int(edges.row_point[goal]),
-        edges.row_point[starts].astype(np.int64),
+    goal_point = edges.row_point[np.atleast_1d(goal)].astype(np.int64)
+    start_points = edges.row_point[starts].astype(np.int64)
+    cut_off = _points_cost_to_go(
+        start_points if forward else goal_point,
+        goal_point if forward else start_points,
+        forward,
         nx,
         ny,
         mask,
@@ -376,7 +386,7 @@ def _points_heuristic(
     # The margin of the gauge: the sums above, in another order than the search's,
     # stay below every true cost-to-go despite rounding.
     out *= 1.0 - 1e-9
-    return out
+    return out, int(cut_off)
 
 
 def _gauge_facets(
@@ -511,6 +521,7 @@ class LazyPolicyTree:
         self._hn[0] = self.goal
         self._size = 1
         self._keyed: tuple[float, float, float] | None = None  # the heuristic of the keys
+        self._keyed_points: FloatArray = np.zeros(0)  # and its point bound (none: empty)
         self.expanded = 0
 
     @property
@@ -575,12 +586,14 @@ class LazyPolicyTree:
             return True
         cx = cy = 0.0
         radius = np.inf  # no queries: h = 0
+        h_point: FloatArray = np.zeros(0)
         if q.size:
             points = np.unique(self.graph.lattice_edges.row_point[q].astype(np.int64))
             qy = (points // nx).astype(np.float64)
             qx = points - qy * nx
             cx, cy = float(qx.mean()), float(qy.mean())
             radius = _gauge_of(qx - cx, qy - cy, h_x, h_y)
+            h_point, _ = _points_heuristic(self.graph, self._type_cost, q, self.goal, forward=True)
         status, size, hf, hg, hn, expanded = _lazy_settle(
             self.goal,
             q,
@@ -592,6 +605,7 @@ class LazyPolicyTree:
             self._type_cost,
             h_x,
             h_y,
+            h_point,
             self._g,
             self.cost_to_go,
             self.next_policy,
@@ -608,6 +622,7 @@ class LazyPolicyTree:
         )
         self._hf, self._hg, self._hn, self._size = hf, hg, hn, int(size)
         self._keyed = (cx, cy, radius)
+        self._keyed_points = h_point
         self.expanded += int(expanded)
         if status == _NEGATIVE:
             raise ConfigError(
@@ -638,6 +653,8 @@ class LazyPolicyTree:
         if h_x.size:
             dx, dy = (pts - py * nx) - kx, py - ky
             h = np.maximum(np.max(np.outer(dx, h_x) + np.outer(dy, h_y), axis=1) - kr, 0.0)
+        if self._keyed_points.size:
+            h = np.maximum(h, self._keyed_points[pts])
         bound = self._hf[0] - h  # with a margin far above rounding
         return bool(np.all(bound > cost + 1e-9 * (1.0 + abs(cost))))
 
