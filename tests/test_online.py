@@ -175,3 +175,49 @@ def test_online_maneuvers_keep_below_the_design_push_floor_on_a_fast_palette() -
     assert _nonic_speeds(free, 0.0, end[0], cruise[0]).max() > FAN_FLOOR
     step = fast.primitive_options.duration_step
     assert _nonic_speeds(least - step, 0.0, end[0], cruise[0]).max() > FAN_FLOOR
+
+
+def test_what_is_designed_and_sized_is_remembered_as_made(palette, fig5_library) -> None:  # type: ignore[no-untyped-def]
+    """A task designs and sizes its start's and end's maneuvers again for the same
+    displacements (checked, then run): the second call returns what the first made,
+    which equals a fresh computation (the same duration and plan; the same S and
+    report), and any other input is made afresh. The domain shape is kept too."""
+    import gracenav.execution.online as online
+    from gracenav.policies import PrimitiveKind, domain_shape
+    from gracenav.policies.shape import _domain_shape
+
+    lib = fig5_library
+    rows = lib.trim_indices(PrimitiveKind.CRUISE)
+    rows = rows[np.isclose(lib.start_state[rows, 2], 0.5) & np.isclose(lib.start_state[rows, 3], 0)]
+    sized = None
+    for row in rows[:: max(1, rows.size // 40)]:  # a launch 1.5 m behind a trim that fits
+        end = lib.start_xy[row]
+        start = end - np.array([1.5, 0.25])
+        made = design(start, end, ZERO, lib.start_state[row, 2:4], palette, 0.0, name="online")
+        if made is None:
+            continue
+        then = lib.policy(int(row)).start_domain
+        sized = online.size_where_it_runs(lib, made, start, then)
+        if sized.report is not None:  # a verification ran: kept
+            break
+    assert sized is not None and sized.report is not None and made is not None
+    velocity = lib.start_state[row, 2:4]
+    assert design(start, end, ZERO, velocity, palette, 0.0, name="online") is made
+    fresh = online._design(end - start, ZERO, velocity, palette, 0.0, "online", None, None)
+    assert fresh is not None and fresh is not made
+    assert fresh.duration == made.duration
+    for field in ("coefficients", "theta", "theta_dot"):
+        np.testing.assert_array_equal(getattr(fresh.plans[0], field), getattr(made.plans[0], field))
+    assert design(start, end, ZERO, velocity, palette, 0.5, name="online") is not made
+    assert online.size_where_it_runs(lib, made, start, then) is sized
+    again = online._size_where_it_runs(lib, made, start, then)
+    np.testing.assert_array_equal(again.start_domain.shape_matrix, sized.start_domain.shape_matrix)
+    assert again.report is not None and again.report.passed == sized.report.passed
+    assert online.size_where_it_runs(lib, made, start + 0.01, then) is not sized
+    # The domain shape: one computation per gains and horizon, equal to a fresh one.
+    horizon = palette.options.shape_horizon
+    shape = domain_shape(palette.gains, horizon=horizon)
+    assert domain_shape(palette.gains, horizon=horizon) is shape
+    key = (palette.gains.lqr.tobytes(), palette.gains.params, float(horizon))
+    assert _domain_shape.__wrapped__(*key) == shape
+    assert domain_shape(palette.gains, horizon=2.0 * horizon) != shape

@@ -12,9 +12,13 @@ torque limits; planned in the one frame it runs in.
 
 from __future__ import annotations
 
+import hashlib
 import math
+import threading
+import weakref
+from collections import OrderedDict
 from collections.abc import Iterator
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -38,6 +42,7 @@ if TYPE_CHECKING:
 __all__ = ["LONGEST", "admissible", "design", "shortest", "size_where_it_runs", "speed_limit"]
 
 FloatArray = NDArray[np.float64]
+_T = TypeVar("_T")
 
 #: Shortest duration (s) designed: the shape trajectory planner's basis needs a few
 #: knots (at 0.25 s and below its linear system is singular or its ends are not trims).
@@ -52,6 +57,58 @@ LONGEST = 6.5
 
 #: Speed (m/s) below which an end is at rest (a stop's end velocity is about 1e-13 m/s).
 _MOVING = 1e-6
+
+# What was designed and sized, remembered: a task is checked before it is run, and the
+# start's candidates and the end's are designed and sized again for the same
+# displacements (256 designs of 54 different ones in a pair of the random pairs
+# campaign). Both are pure functions of their inputs, so a remembered result is the
+# result. Designs by palette (id, dropped with it), sizings by library (its map), the
+# last few: about 0.24 MB a design, 0.8 MB a verified sizing (those whose S = G does not
+# fit, no verification run, cost a few ms and are not kept).
+_DESIGNS_KEPT = 96
+_SIZINGS_KEPT = 32
+_designs: dict[int, OrderedDict[bytes, Maneuver | None]] = {}
+_sizings: weakref.WeakKeyDictionary[
+    PolicyLibrary, OrderedDict[bytes, tuple[Maneuver, MotionPolicy]]
+] = weakref.WeakKeyDictionary()
+_remembered = threading.Lock()
+
+
+def _key(*parts: object) -> bytes:
+    """A digest of arrays (their float64 bytes) and other values (their repr)."""
+    h = hashlib.sha1()
+    for part in parts:
+        if isinstance(part, np.ndarray):
+            h.update(np.ascontiguousarray(part, dtype=float).tobytes())
+        else:
+            h.update(repr(part).encode())
+        h.update(b"|")
+    return h.digest()
+
+
+def _recall(table: OrderedDict[bytes, _T], key: bytes) -> tuple[_T] | None:
+    """The value remembered for ``key`` (boxed: it may be None), or None."""
+    with _remembered:
+        if key in table:
+            table.move_to_end(key)
+            return (table[key],)
+    return None
+
+
+def _keep(table: OrderedDict[bytes, _T], key: bytes, value: _T, most: int) -> None:
+    with _remembered:
+        table[key] = value
+        while len(table) > most:
+            table.popitem(last=False)
+
+
+def _designs_of(palette: Palette) -> OrderedDict[bytes, Maneuver | None]:
+    with _remembered:
+        table = _designs.get(id(palette))
+        if table is None:
+            table = _designs[id(palette)] = OrderedDict()
+            weakref.finalize(palette, _designs.pop, id(palette), None)
+    return table
 
 
 def speed_limit(library: PolicyLibrary) -> float:
@@ -143,10 +200,30 @@ def design(
     ``start`` at ``v0`` to ``end`` at ``v1`` that is feasible on the 3D model (None if
     none is up to ``longest``, s, by default the palette's longest maneuver; within
     ``max_speed`` where given)."""
-    options = palette.primitive_options
-    params = palette.params
     disp = np.asarray(end, dtype=float) - start
     v0, v1 = (np.asarray(v, dtype=float) for v in (v0, v1))
+    table = _designs_of(palette)
+    key = _key(disp, v0, v1, float(shortest), name, longest, max_speed)
+    found = _recall(table, key)
+    if found is not None:
+        return found[0]
+    made = _design(disp, v0, v1, palette, shortest, name, longest, max_speed)
+    _keep(table, key, made, _DESIGNS_KEPT)
+    return made
+
+
+def _design(
+    disp: FloatArray,
+    v0: FloatArray,
+    v1: FloatArray,
+    palette: Palette,
+    shortest: float,
+    name: str,
+    longest: float | None,
+    max_speed: float | None,
+) -> Maneuver | None:
+    options = palette.primitive_options
+    params = palette.params
     for duration, ref in admissible(disp, v0, v1, options, shortest, params, longest, max_speed):
         if not passes_screen(ref, params, options):
             continue  # the palette's screen: the 3D model only where it may pass
@@ -182,10 +259,27 @@ def size_where_it_runs(
     of what follows, world frame) holds its G (exact containment) and its swept D' grown
     by the footprint is clear of the map: near a wall a smaller S rather than none. Its
     report is None where not even S = G passes the size test (no verification ran)."""
+    at = np.asarray(start, dtype=float)
+    with _remembered:
+        table = _sizings.setdefault(library, OrderedDict())
+    # The maneuver by identity (design returns the one it remembers), kept with the
+    # result so that its id is not reused while remembered.
+    key = _key(id(maneuver), at, then.center, then.shape_matrix)
+    found = _recall(table, key)
+    if found is not None and found[0][0] is maneuver:
+        return found[0][1]
+    sized = _size_where_it_runs(library, maneuver, at, then)
+    if sized.report is not None:
+        _keep(table, key, (maneuver, sized), _SIZINGS_KEPT)
+    return sized
+
+
+def _size_where_it_runs(
+    library: PolicyLibrary, maneuver: Maneuver, at: FloatArray, then: EllipsoidalDomain
+) -> MotionPolicy:
     palette = library.palette
     gains, vopts = palette.gains, palette.options
     capture = capture_for(library)
-    at = np.asarray(start, dtype=float)
 
     def fits(pol: MotionPolicy) -> bool:
         if not then.contains_domain(PlacedPolicy(pol, 0.0, at).goal_domain):

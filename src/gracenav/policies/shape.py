@@ -3,11 +3,13 @@ closed loop's error dynamics."""
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 
 from gracenav.control import ControllerGains
+from gracenav.params import BallbotParams
 from gracenav.policies.options import DomainRadii
 from gracenav.policies.primitive import FloatArray
 
@@ -35,19 +37,28 @@ def domain_shape(gains: ControllerGains, *, horizon: float = 1.0) -> DomainShape
     matrix Φ; the ellipse {eᵀ P e <= 1} minimising ‖P^½ Φ P^-½‖₂ (the worst-case
     shrink factor) is found by Nelder–Mead over the normalised P, for the worse of
     the two planes.
+
+    The result depends only on the gains' ``lqr`` and ``params`` and on ``horizon``,
+    and is kept for the last few of them (the maneuvers designed online ask for it at
+    every sizing, 16 ms each).
     """
+    return _domain_shape(np.asarray(gains.lqr, dtype=float).tobytes(), gains.params, float(horizon))
+
+
+@functools.lru_cache(maxsize=8)
+def _domain_shape(lqr_bytes: bytes, params: BallbotParams, horizon: float) -> DomainShape:
     import scipy.linalg
     import scipy.optimize
 
     from gracenav.control import planar_to_position_coordinates
     from gracenav.model.planar import PlanarBallbot
 
-    params = gains.params
+    lqr = np.frombuffer(lqr_bytes, dtype=float).reshape(2, 4)
     t = planar_to_position_coordinates(params.ball_radius)
     phis = []
     for i, plane in enumerate(("x", "y")):
         a, b = PlanarBallbot(params, plane=plane).linearize()  # type: ignore[arg-type]
-        acl = t @ a @ np.linalg.inv(t) - (t @ b) @ gains.lqr[i][None, :]
+        acl = t @ a @ np.linalg.inv(t) - (t @ b) @ lqr[i][None, :]
         phis.append(scipy.linalg.expm(acl * horizon)[np.ix_([0, 2], [0, 2])])
 
     def unit(z: FloatArray) -> FloatArray:
