@@ -263,10 +263,11 @@ def test_verify_still_start_checks_only_policies_that_start_at_rest(palette) -> 
     assert verify_still_start(pol, dataclasses.replace(opts, catch=None)) is pol
 
 
-def test_sizing_keeps_to_a_size_test_and_one_placement(palette) -> None:
+def test_sizing_keeps_to_a_size_test_and_one_placement(palette, monkeypatch) -> None:  # type: ignore[no-untyped-def]
     """``size_policy``'s ``fits``: the largest verified S that also passes the test (a
     bound on S/G here), never a verification of a size that fails it, None where even
-    S = G fails it; ``placements=(0,)`` verifies the one frame, half the runs."""
+    S = G fails it; ``placements=(0,)`` verifies the one frame, half the runs; with
+    ``largest_fit_first`` the same policy from fewer verifications."""
     prim = palette["rest_to_rest_1_0"].primitive
     opts = dataclasses.replace(palette.options, boundary_points=16, bisection_steps=4)
     free = size_policy(prim, palette.gains, opts)
@@ -284,6 +285,51 @@ def test_sizing_keeps_to_a_size_test_and_one_placement(palette) -> None:
     assert len(tried) == opts.bisection_steps + 2
     none = size_policy(prim, palette.gains, opts, fits=lambda pol: False)
     assert none.report is None
+    # The size test's bisection first: the same policy, verified once instead of at
+    # S = G and at every size that fits.
+    runs: list[int] = []
+    first = size_policy(
+        prim,
+        palette.gains,
+        opts,
+        fits=small,
+        largest_fit_first=True,
+        progress=lambda: runs.append(1),
+    )
+    assert first.scale == sized.scale and first.report == sized.report and len(runs) == 1
+    assert (
+        size_policy(
+            prim, palette.gains, opts, fits=lambda pol: False, largest_fit_first=True
+        ).report
+        is None
+    )
+    # Where the size the test ends on fails verification (made to fail above 1.2 G
+    # here), the bisection with verification runs, as without the option.
+    import gracenav.policies.verification as verification
+
+    real = verification.verify_placements
+
+    def shy(pol, *args, **kwargs):  # type: ignore[no-untyped-def]
+        report = real(pol, *args, **kwargs)
+        return dataclasses.replace(report, passed=report.passed and pol.scale <= 1.2)
+
+    monkeypatch.setattr(verification, "verify_placements", shy)
+    runs.clear()
+    fallback = size_policy(
+        prim,
+        palette.gains,
+        opts,
+        fits=small,
+        largest_fit_first=True,
+        progress=lambda: runs.append(1),
+    )
+    plain_runs: list[int] = []
+    plain = size_policy(
+        prim, palette.gains, opts, fits=small, progress=lambda: plain_runs.append(1)
+    )
+    assert 1.0 < fallback.scale <= 1.2 and fallback.scale == plain.scale
+    assert fallback.report == plain.report and fallback.report.passed
+    assert len(runs) == len(plain_runs) + 1  # the fit's size first
     one = verify_placements(sized, opts, placements=(0,))
     both = verify_placements(sized, opts)
     assert one.passed and both.passed and 2 * one.runs == both.runs

@@ -257,8 +257,10 @@ def size_where_it_runs(
     the one frame it runs in (the palette's policies also at a quarter turn, since the
     library places them at every quarter turn), with the size test that ``then`` (the S
     of what follows, world frame) holds its G (exact containment) and its swept D' grown
-    by the footprint is clear of the map: near a wall a smaller S rather than none. Its
-    report is None where not even S = G passes the size test (no verification ran)."""
+    by the footprint is clear of the map: near a wall a smaller S rather than none (the
+    size test's bisection run first, and the size it ends on verified:
+    ``largest_fit_first``). Its report is None where not even S = G passes the size test
+    (no verification ran). Verified sizings are remembered per library."""
     at = np.asarray(start, dtype=float)
     with _remembered:
         table = _sizings.setdefault(library, OrderedDict())
@@ -294,4 +296,5 @@ def _size_where_it_runs(
         shape=domain_shape(gains, horizon=vopts.shape_horizon),
         fits=fits,
         placements=(0,),
+        largest_fit_first=True,
     )

@@ -158,6 +158,7 @@ def size_policy(
     progress: Callable[[], None] | None = None,
     fits: Callable[[MotionPolicy], bool] | None = None,
     placements: tuple[int, ...] = (0, 1),
+    largest_fit_first: bool = False,
 ) -> MotionPolicy:
     """Build the policy of ``primitive`` with the largest start domain that verifies.
 
@@ -179,6 +180,12 @@ def size_policy(
         verification, without running it.
     placements : tuple of int
         Quarter turns it is verified at (:func:`verify_placements`).
+    largest_fit_first : bool
+        With ``fits``: run the same bisection on ``fits`` alone first (no
+        verification) and verify only the size it ends on; if that passes, it is the
+        result, the one the bisection with verification gives wherever verification
+        passes at every size it tries (sizes that fit rarely fail it: the maneuvers
+        designed online). Otherwise the bisection with verification runs as without it.
 
     Returns
     -------
@@ -201,6 +208,29 @@ def size_policy(
             progress()
         return replace(pol, report=report)
 
+    if fits is not None and largest_fit_first:
+
+        def fitting(scale: float) -> bool:
+            pol = MotionPolicy(
+                primitive, gains, goal.scaled(scale), goal, factors, shape.correlation
+            )
+            return fits(pol)
+
+        if not fitting(1.0):
+            return attempt(1.0)  # as below: not even S = G fits, no verification
+        size = options.max_scale
+        if not fitting(size):
+            lo, hi = 1.0, options.max_scale
+            for _ in range(options.bisection_steps):
+                mid = 0.5 * (lo + hi)
+                if fitting(mid):
+                    lo = mid
+                else:
+                    hi = mid
+            size = lo
+        sized = attempt(size)
+        if sized.report is not None and sized.report.passed:
+            return sized
     best = attempt(1.0)
     if best.report is None or not best.report.passed:
         return best
