@@ -221,3 +221,27 @@ def test_what_is_designed_and_sized_is_remembered_as_made(palette, fig5_library)
     key = (palette.gains.lqr.tobytes(), palette.gains.params, float(horizon))
     assert _domain_shape.__wrapped__(*key) == shape
     assert domain_shape(palette.gains, horizon=2.0 * horizon) != shape
+
+
+def _design_in_child(palette, out) -> None:  # type: ignore[no-untyped-def]
+    made = design(ZERO, np.array([1.5, 0.25]), ZERO, np.array([0.5, 0.0]), palette, 0.0, name="c")
+    out.put(None if made is None else made.duration)
+
+
+def test_a_forked_child_remembers_without_the_parents_lock(palette) -> None:  # type: ignore[no-untyped-def]
+    """A process forked while a thread of its parent holds the lock of what is
+    remembered designs in the child all the same (the child gets a lock of its own)."""
+    import multiprocessing
+
+    import gracenav.execution.online as online
+
+    ctx = multiprocessing.get_context("fork")
+    out = ctx.Queue()
+    with online._remembered:  # held while the child is forked
+        child = ctx.Process(target=_design_in_child, args=(palette, out))
+        child.start()
+    child.join(120.0)  # a hang guard
+    assert child.exitcode == 0
+    duration = out.get(timeout=5.0)
+    made = design(ZERO, np.array([1.5, 0.25]), ZERO, np.array([0.5, 0.0]), palette, 0.0, name="c")
+    assert made is not None and duration == made.duration

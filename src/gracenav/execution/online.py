@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import os
 import threading
 import weakref
 from collections import OrderedDict
@@ -72,6 +73,15 @@ _sizings: weakref.WeakKeyDictionary[
     PolicyLibrary, OrderedDict[bytes, tuple[Maneuver, MotionPolicy]]
 ] = weakref.WeakKeyDictionary()
 _remembered = threading.Lock()
+
+
+def _forget_the_lock() -> None:
+    """In a forked child: a new lock (another thread may have held the parent's)."""
+    global _remembered
+    _remembered = threading.Lock()
+
+
+os.register_at_fork(after_in_child=_forget_the_lock)
 
 
 def _key(*parts: object) -> bytes:
