@@ -185,7 +185,8 @@ def size_policy(
         verification) and verify only the size it ends on; if that passes, it is the
         result, the one the bisection with verification gives wherever verification
         passes at every size it tries (sizes that fit rarely fail it: the maneuvers
-        designed online). Otherwise the bisection with verification runs as without it.
+        designed online). Otherwise the bisection with verification runs as without it
+        (each size is verified at most once).
 
     Returns
     -------
@@ -199,50 +200,50 @@ def size_policy(
     goal = shape.radii(options.goal_position_extent)
     factors = (options.outer_position_factor, options.outer_velocity_factor)
 
+    def policy(scale: float) -> MotionPolicy:
+        return MotionPolicy(primitive, gains, goal.scaled(scale), goal, factors, shape.correlation)
+
+    tried: dict[float, MotionPolicy] = {}
+
     def attempt(scale: float) -> MotionPolicy:
-        pol = MotionPolicy(primitive, gains, goal.scaled(scale), goal, factors, shape.correlation)
-        if fits is not None and not fits(pol):
-            return pol
-        report = verify_placements(pol, options, placements=placements)
-        if progress is not None:
-            progress()
-        return replace(pol, report=report)
+        """The policy of S = scale G, verified if it fits (once per scale)."""
+        if scale not in tried:
+            pol = policy(scale)
+            if fits is None or fits(pol):
+                pol = replace(pol, report=verify_placements(pol, options, placements=placements))
+                if progress is not None:
+                    progress()
+            tried[scale] = pol
+        return tried[scale]
+
+    def verified(scale: float) -> bool:
+        report = attempt(scale).report
+        return report is not None and report.passed
 
     if fits is not None and largest_fit_first:
+        size = _largest_scale(lambda scale: fits(policy(scale)), options)
+        if size is None:
+            return attempt(1.0)  # not even S = G fits: no verification
+        if verified(size):
+            return attempt(size)
+    size = _largest_scale(verified, options)
+    return attempt(1.0 if size is None else size)
 
-        def fitting(scale: float) -> bool:
-            pol = MotionPolicy(
-                primitive, gains, goal.scaled(scale), goal, factors, shape.correlation
-            )
-            return fits(pol)
 
-        if not fitting(1.0):
-            return attempt(1.0)  # as below: not even S = G fits, no verification
-        size = options.max_scale
-        if not fitting(size):
-            lo, hi = 1.0, options.max_scale
-            for _ in range(options.bisection_steps):
-                mid = 0.5 * (lo + hi)
-                if fitting(mid):
-                    lo = mid
-                else:
-                    hi = mid
-            size = lo
-        sized = attempt(size)
-        if sized.report is not None and sized.report.passed:
-            return sized
-    best = attempt(1.0)
-    if best.report is None or not best.report.passed:
-        return best
-    top = attempt(options.max_scale)
-    if top.report is not None and top.report.passed:
-        return top
+def _largest_scale(passes: Callable[[float], bool], options: VerificationOptions) -> float | None:
+    """The bisection of :func:`size_policy` on a test of the scale S/G: None if 1 fails,
+    ``options.max_scale`` if it passes, else the largest passing midpoint found in
+    ``options.bisection_steps`` halvings (1 if none), trying 1, the top, then the
+    midpoints in that order."""
+    if not passes(1.0):
+        return None
+    if passes(options.max_scale):
+        return options.max_scale
     lo, hi = 1.0, options.max_scale
     for _ in range(options.bisection_steps):
         mid = 0.5 * (lo + hi)
-        cand = attempt(mid)
-        if cand.report is not None and cand.report.passed:
-            best, lo = cand, mid
+        if passes(mid):
+            lo = mid
         else:
             hi = mid
-    return best
+    return lo
