@@ -3,6 +3,8 @@ rest onto a cruise state (online starts) and from cruise or rest to rest (online
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -245,3 +247,31 @@ def test_a_forked_child_remembers_without_the_parents_lock(palette) -> None:  # 
     duration = out.get(timeout=5.0)
     made = design(ZERO, np.array([1.5, 0.25]), ZERO, np.array([0.5, 0.0]), palette, 0.0, name="c")
     assert made is not None and duration == made.duration
+
+
+def test_the_shortest_duration_is_remembered_as_scanned(palette) -> None:  # type: ignore[no-untyped-def]
+    """``shortest`` answers again what a scan of the duration grid (:func:`admissible`'s
+    first) gives, for displacements and speeds it has seen and not seen, inf included
+    (a displacement no nonic within the palette's speed covers in ``longest``)."""
+    from gracenav.execution.online import admissible
+
+    opts, params = palette.primitive_options, palette.params
+
+    def scanned(disp, v0, v1, longest, max_speed):  # type: ignore[no-untyped-def]
+        first = admissible(disp, v0, v1, opts, 0.0, params, longest, max_speed)
+        return next((d for d, _ in first), math.inf)
+
+    cruise = np.array([0.5, 0.0])
+    cases = [
+        (np.array([1.5, 0.25]), ZERO, cruise, None, None),
+        (np.array([1.5, 0.25]), ZERO, cruise, 6.5, 0.8),
+        (np.array([0.75, -0.5]), ZERO, cruise, 6.5, 0.8),
+        (np.array([1.0, 0.0]), cruise, ZERO, 6.5, 0.8),
+        (np.array([9.0, 0.0]), ZERO, cruise, None, None),  # too far: inf
+    ]
+    for _ in range(2):  # made, then remembered
+        for disp, v0, v1, longest, max_speed in cases:
+            got = shortest(ZERO, disp, v0, v1, palette, longest, max_speed)
+            assert got == scanned(disp, v0, v1, longest, max_speed)
+    assert shortest(ZERO, cases[0][0], ZERO, cruise, palette) != math.inf
+    assert shortest(ZERO, cases[-1][0], ZERO, cruise, palette) == math.inf

@@ -65,10 +65,15 @@ _MOVING = 1e-6
 # campaign). Both are pure functions of their inputs, so a remembered result is the
 # result. Designs by palette (id, dropped with it), sizings by library (its map), the
 # last few: about 0.24 MB a design, 0.8 MB a verified sizing (those whose S = G does not
-# fit, no verification run, cost a few ms and are not kept).
+# fit, no verification run, cost a few ms and are not kept). The shortest durations
+# kinematics allow too, by palette: a start's candidates ask for one per policy ahead,
+# and policies that start at one cruise state ask the same (471 asks of 107 different
+# ones in a pair), each a scan of the duration grid (about 2 ms); a few bytes each.
 _DESIGNS_KEPT = 96
 _SIZINGS_KEPT = 32
+_SHORTEST_KEPT = 4096
 _designs: dict[int, OrderedDict[bytes, Maneuver | None]] = {}
+_shortest: dict[int, OrderedDict[bytes, float]] = {}
 _sizings: weakref.WeakKeyDictionary[
     PolicyLibrary, OrderedDict[bytes, tuple[Maneuver, MotionPolicy]]
 ] = weakref.WeakKeyDictionary()
@@ -112,12 +117,15 @@ def _keep(table: OrderedDict[bytes, _T], key: bytes, value: _T, most: int) -> No
             table.popitem(last=False)
 
 
-def _designs_of(palette: Palette) -> OrderedDict[bytes, Maneuver | None]:
+def _table_of(
+    tables: dict[int, OrderedDict[bytes, _T]], palette: Palette
+) -> OrderedDict[bytes, _T]:
+    """``palette``'s table in ``tables`` (made on first use, dropped with the palette)."""
     with _remembered:
-        table = _designs.get(id(palette))
+        table = tables.get(id(palette))
         if table is None:
-            table = _designs[id(palette)] = OrderedDict()
-            weakref.finalize(palette, _designs.pop, id(palette), None)
+            table = tables[id(palette)] = OrderedDict()
+            weakref.finalize(palette, tables.pop, id(palette), None)
     return table
 
 
@@ -188,10 +196,18 @@ def shortest(
     kinematics alone."""
     disp = np.asarray(end, dtype=float) - start
     u0, u1 = np.asarray(v0, dtype=float), np.asarray(v1, dtype=float)
+    table = _table_of(_shortest, palette)
+    key = _key(disp, u0, u1, longest, max_speed)
+    found = _recall(table, key)
+    if found is not None:
+        return found[0]
+    least = math.inf
     opts, params = palette.primitive_options, palette.params
     for duration, _ in admissible(disp, u0, u1, opts, 0.0, params, longest, max_speed):
-        return duration
-    return math.inf
+        least = duration
+        break
+    _keep(table, key, least, _SHORTEST_KEPT)
+    return least
 
 
 def design(
@@ -212,7 +228,7 @@ def design(
     ``max_speed`` where given)."""
     disp = np.asarray(end, dtype=float) - start
     v0, v1 = (np.asarray(v, dtype=float) for v in (v0, v1))
-    table = _designs_of(palette)
+    table = _table_of(_designs, palette)
     key = _key(disp, v0, v1, float(shortest), name, longest, max_speed)
     found = _recall(table, key)
     if found is not None:
