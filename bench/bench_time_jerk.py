@@ -67,6 +67,17 @@ def _palette(name: str) -> Any:
     return _PALETTES[name]
 
 
+def _label(name: str) -> str:
+    """``name`` (a file's stem) and the ball jerk bound of its maneuvers."""
+    from gracenav.palette import PaletteLimits
+
+    limits = PaletteLimits.of(_palette(name))
+    bound = (
+        f"ball jerk ≤ {limits.max_ball_jerk:g} m/s³" if limits.reference == "limited" else "nonics"
+    )
+    return f"{Path(name).stem if ('/' in name or '.' in name) else name} ({bound})"
+
+
 def _trial(job: tuple[str, str, float | None, int]) -> dict[str, Any]:
     """One row: gracenav on palette ``name``, or the baseline at jerk scale ``scale``
     with palette ``name``'s limits (in a worker)."""
@@ -146,19 +157,21 @@ def _plot(
             f"{scale:g}",
             (line["max_jerk"], line["time"]),
             textcoords="offset points",
-            xytext=(4, 4),
+            xytext=(-4, -13),
             fontsize=8,
             color="tab:gray",
         )
     for name, line in palettes:
-        ax.plot(line["max_jerk"], line["time"], "s", markersize=7, label=f"gracenav, {name}")
+        ax.plot(
+            line["max_jerk"], line["time"], "s", markersize=7, label=f"gracenav, {_label(name)}"
+        )
     default = dict(curve)[DEFAULT_SCALE]
     ax.fill_between(
         [min(xs + [ln["max_jerk"] for _, ln in palettes]) * 0.8, default["max_jerk"]],
         0.0,
         default["time"],
-        color="tab:green",
-        alpha=0.12,
+        color="tab:gray",
+        alpha=0.15,
         label="both targets against the default scale",
     )
     ax.set_xscale("log")
