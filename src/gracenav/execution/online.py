@@ -68,7 +68,7 @@ _MOVING = 1e-6
 # fit, no verification run, cost a few ms and are not kept). The shortest durations
 # kinematics allow too, by palette: a start's candidates ask for one per policy ahead,
 # and policies that start at one cruise state ask the same (471 asks of 107 different
-# ones in a pair), each a scan of the duration grid (about 2 ms); a few bytes each.
+# ones in a pair), each a scan of the duration grid (about 2 ms); ~150 bytes each.
 _DESIGNS_KEPT = 96
 _SIZINGS_KEPT = 32
 _SHORTEST_KEPT = 4096
