@@ -39,7 +39,6 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse
-import itertools
 import json
 import statistics
 import sys
@@ -48,8 +47,9 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
+from bench_speed import PAIRS, _between, _scales
+
 HERE = Path(__file__).resolve().parent
-PAIRS = HERE.parent / "examples" / "campaigns" / "random_pairs.yaml"
 
 #: The baseline's default jerk scale (``DecoupledOptions.accel_scale``'s default).
 DEFAULT_SCALE = 0.9
@@ -128,14 +128,6 @@ def _median(values: list[float]) -> float:
     return statistics.median(values) if values else float("nan")
 
 
-def _between(points: list[tuple[float, float]], x: float) -> float | None:
-    """y at ``x``, linear between the two points around it in x (None outside)."""
-    for (x0, y0), (x1, y1) in itertools.pairwise(sorted(points)):
-        if x0 <= x <= x1:
-            return y0 if x1 == x0 else y0 + (x - x0) / (x1 - x0) * (y1 - y0)
-    return None
-
-
 def _plot(
     path: Path,
     curve: list[tuple[float, dict[str, Any]]],
@@ -199,18 +191,6 @@ def _names(text: str) -> list[str]:
     return names
 
 
-def _scales(text: str) -> list[float]:
-    try:
-        values = sorted({float(v) for v in text.split(",") if v.strip()})
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"not a comma-separated list of numbers: {text!r}"
-        ) from None
-    if len(values) < 2 or not all(0 < v <= 10 for v in values):
-        raise argparse.ArgumentTypeError(f"at least two jerk scales in (0, 10], got {text!r}")
-    return values
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -246,6 +226,9 @@ def main() -> None:
         ap.error(f"--trials must be 1..200 (the campaign's trials), got {args.trials}")
     if args.processes < 1:
         ap.error(f"--processes must be at least 1, got {args.processes}")
+    args.jerk_scales = sorted(set(args.jerk_scales))
+    if len(args.jerk_scales) < 2:
+        ap.error("--jerk-scales needs at least two scales: the baseline's curve")
     if DEFAULT_SCALE not in args.jerk_scales:
         ap.error(f"--jerk-scales must include the baseline's default, {DEFAULT_SCALE:g}")
     for name in {*args.palettes, args.baseline_palette}:
