@@ -174,7 +174,8 @@ def main() -> None:
     trims = lib.trim_indices()
     big = trims[label[trims] == np.argmax(np.bincount(label))]
     res: dict[str, list[float]] = {}
-    stored_s, implicit_s = [], []
+    stored_s: list[float] = []
+    implicit_s: list[float] = []
     for _ in range(args.trips):
         while True:
             start, goal = (int(v) for v in rng.choice(big, 2, replace=False))

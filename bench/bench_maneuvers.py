@@ -67,7 +67,7 @@ def main() -> None:
             cruise_speed=args.cruise_speed,
             max_speed=args.max_speed,
             duration_step=args.duration_step,
-            reference=kind,  # type: ignore[arg-type]
+            reference=kind,
             max_ball_jerk=args.max_ball_jerk,
         )
         sets[kind] = primitive_set(options=options)

@@ -57,6 +57,7 @@ def main() -> None:
     )
     sc = load_scenario(path)
     wm = load_map(sc.map_source)
+    assert sc.max_halvings is not None, "the Fig. 5 scenario states its halvings"
     lib5 = build_library(pal, wm, max_halvings=sc.max_halvings)
     hc = HybridController(lib5, build_graph(lib5))
     r = pal.params.ball_radius

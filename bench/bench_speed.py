@@ -127,7 +127,7 @@ def _median(values: list[float]) -> float:
 
 def _row(name: str, rows: list[dict[str, Any]], bound: float | None) -> dict[str, Any]:
     reached = [r for r in rows if r.get("reached_goal")]
-    out = {
+    out: dict[str, Any] = {
         "planner": name,
         "success": f"{len(reached)}/{len(rows)}",
         "time": _median([r["time_s"] for r in reached]),
@@ -423,15 +423,15 @@ def bench_pairs(
     t0 = time.perf_counter()
     for i in range(trials):
         phase = None
-        for planner in PLANNERS:
-            row, result = trial_result(campaign, i, planner)
-            if breakdown and planner == "gracenav" and result is not None and row["reached_goal"]:
+        for kind in PLANNERS:
+            row, result = trial_result(campaign, i, kind)
+            if breakdown and kind == "gracenav" and result is not None and row["reached_goal"]:
                 phase = _phases(result)
             if "start_x" in row:
                 length = math.hypot(row["goal_x"] - row["start_x"], row["goal_y"] - row["start_y"])
                 bound = physical_time_bound(palette.params, length, lean_limit=lean_limit)
                 row["bound_s"] = bound.bound
-            by_planner[planner].append(row)
+            by_planner[kind].append(row)
         if phase is not None and by_planner["decoupled"][-1].get("reached_goal"):
             phases.append((by_planner["gracenav"][-1], phase, by_planner["decoupled"][-1]))
         print(

@@ -52,7 +52,7 @@ ROOM = ROOT / "examples" / "maps" / "room_5m_box.yaml"
 BIG = ((2.0, (22.0, 5.0)), (6.0, (-4.0, 20.0)))
 
 
-def one_run(  # type: ignore[no-untyped-def]
+def one_run(
     hc: HybridController, start, goals, moving, pushes, options: ExecutionOptions, realtime: bool
 ) -> tuple[np.ndarray, str, int]:
     """Step times (s) of one run, its status and its number of ticks."""
