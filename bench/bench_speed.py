@@ -37,7 +37,9 @@ runs, after the pairs, the decoupled baseline alone on the same pairs at each je
 (``DecoupledOptions.jerk_scale``: its flat output's jerk limit is that factor times κ
 times the palette's largest lean rate; the default is 0.9), its time against its
 jerk, and (after the pairs) the baseline's time at gracenav's median max jerk and its
-jerk at gracenav's median time, interpolated between the scales around them. ``--breakdown``
+jerk at gracenav's median time, interpolated between the scales around them
+(``bench_time_jerk.py`` draws that plane for several palettes at once, on two
+processes). ``--breakdown``
 also prints, per pair, where gracenav's time goes (the start: capture regulators,
 catches, shifts and rest trims before the first lattice maneuver that moves; the
 lattice's maneuvers; the end after the last one), its path against the baseline's, and
