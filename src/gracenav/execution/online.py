@@ -18,7 +18,7 @@ import os
 import threading
 import weakref
 from collections import OrderedDict
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
@@ -117,6 +117,18 @@ def _keep(table: OrderedDict[bytes, _T], key: bytes, value: _T, most: int) -> No
             table.popitem(last=False)
 
 
+def _remembered_or_made(
+    table: OrderedDict[bytes, _T], key: bytes, most: int, make: Callable[[], _T]
+) -> _T:
+    """What ``table`` remembers for ``key``, else ``make()``, kept (the last ``most``)."""
+    found = _recall(table, key)
+    if found is not None:
+        return found[0]
+    made = make()
+    _keep(table, key, made, most)
+    return made
+
+
 def _table_of(
     tables: dict[int, OrderedDict[bytes, _T]], palette: Palette
 ) -> OrderedDict[bytes, _T]:
@@ -196,18 +208,14 @@ def shortest(
     kinematics alone."""
     disp = np.asarray(end, dtype=float) - start
     u0, u1 = np.asarray(v0, dtype=float), np.asarray(v1, dtype=float)
-    table = _table_of(_shortest, palette)
-    key = _key(disp, u0, u1, longest, max_speed)
-    found = _recall(table, key)
-    if found is not None:
-        return found[0]
-    least = math.inf
     opts, params = palette.primitive_options, palette.params
-    for duration, _ in admissible(disp, u0, u1, opts, 0.0, params, longest, max_speed):
-        least = duration
-        break
-    _keep(table, key, least, _SHORTEST_KEPT)
-    return least
+
+    def scan() -> float:
+        first = admissible(disp, u0, u1, opts, 0.0, params, longest, max_speed)
+        return next((duration for duration, _ in first), math.inf)
+
+    key = _key(disp, u0, u1, longest, max_speed)
+    return _remembered_or_made(_table_of(_shortest, palette), key, _SHORTEST_KEPT, scan)
 
 
 def design(
@@ -228,14 +236,13 @@ def design(
     ``max_speed`` where given)."""
     disp = np.asarray(end, dtype=float) - start
     v0, v1 = (np.asarray(v, dtype=float) for v in (v0, v1))
-    table = _table_of(_designs, palette)
     key = _key(disp, v0, v1, float(shortest), name, longest, max_speed)
-    found = _recall(table, key)
-    if found is not None:
-        return found[0]
-    made = _design(disp, v0, v1, palette, shortest, name, longest, max_speed)
-    _keep(table, key, made, _DESIGNS_KEPT)
-    return made
+    return _remembered_or_made(
+        _table_of(_designs, palette),
+        key,
+        _DESIGNS_KEPT,
+        lambda: _design(disp, v0, v1, palette, shortest, name, longest, max_speed),
+    )
 
 
 def _design(
