@@ -47,12 +47,13 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from bench_speed import PAIRS, _between, _scales
+from bench_speed import HERE, PAIRS, _between, _scales
 
-HERE = Path(__file__).resolve().parent
+from gracenav.baseline import DecoupledOptions
 
-#: The baseline's default jerk scale (``DecoupledOptions.accel_scale``'s default).
-DEFAULT_SCALE = 0.9
+#: The baseline's default jerk scale (its ``accel_scale``, which ``jerk_scale`` follows
+#: when not given).
+DEFAULT_SCALE = DecoupledOptions().accel_scale
 
 _PALETTES: dict[str, Any] = {}
 
