@@ -100,6 +100,7 @@ def test_key_hashes_inputs_not_computed_gains() -> None:
     assert (
         palette_key(params, design_gains(params, friction_compensation=False), options, 0.5) != key
     )
+    assert palette_key(params, design_gains(params, friction_midpoint=True), options, 0.5) != key
     heavier = dataclasses.replace(params, body_mass=60.0)
     assert palette_key(heavier, gains, options, 0.5) != key
     assert palette_key(params, gains, VerificationOptions(boundary_points=65), 0.5) != key

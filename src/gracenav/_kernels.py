@@ -24,12 +24,33 @@ from gracenav.model import _ballbot3d_generated as _gen
 from gracenav.model.friction import friction_torque
 
 __all__ = [
+    "FRICTION_MEASURED",
+    "FRICTION_MIDPOINT",
+    "FRICTION_OFF",
     "closed_loop",
     "control_law",
     "dynamics",
+    "friction_mode",
     "mass_matrix",
     "rebuild_fine",
 ]
+
+#: The control law's friction feed-forward: none.
+FRICTION_OFF = 0
+#: The control law's friction feed-forward at the measured ball rate.
+FRICTION_MEASURED = 1
+#: The control law's friction feed-forward at the ball rate predicted for the middle of
+#: the control period (the measured rate plus half the reference's change over it).
+FRICTION_MIDPOINT = 2
+
+
+def friction_mode(compensation: bool, midpoint: bool) -> int:
+    """The control law's ``friction_comp`` argument for the gains'
+    ``friction_compensation`` and ``friction_midpoint``."""
+    if not compensation:
+        return FRICTION_OFF
+    return FRICTION_MIDPOINT if midpoint else FRICTION_MEASURED
+
 
 mass_matrix = njit(cache=True, error_model="numpy")(_gen.mass_matrix)
 bias = njit(cache=True, error_model="numpy")(_gen.bias)
@@ -142,10 +163,15 @@ def rebuild_fine(cstates, cacc, cfirst, ffirst, intervals, basis, h, c, fr, r, s
 
 
 @njit(cache=True, error_model="numpy")
-def control_law(r, fr, k, max_comp, friction_comp, x, meas_noise, x_ref, tau_ff, out):
+def control_law(r, fr, k, max_comp, friction_comp, x, meas_noise, x_ref, x_next, tau_ff, out):
     """Fig. 2 cascade for both planes; writes the (unsaturated) torque to ``out`` (2,).
 
-    ``meas_noise`` (4,) is added to the measured [p_x, p_y, ṗ_x, ṗ_y]."""
+    ``meas_noise`` (4,) is added to the measured [p_x, p_y, ṗ_x, ṗ_y]. ``friction_comp``
+    (:data:`FRICTION_OFF`, :data:`FRICTION_MEASURED`, :data:`FRICTION_MIDPOINT`) says
+    at which ball rate the friction is fed forward: none, the measured one, or the
+    measured one plus half the reference's change over the period (``x_next`` the
+    reference state of the next tick), the rate in the middle of the period over which
+    the torque is held."""
     for i in range(2):
         p = r * (x[i] + x[2 + i]) + meas_noise[i]
         v = r * (x[4 + i] + x[6 + i]) + meas_noise[2 + i]
@@ -158,8 +184,11 @@ def control_law(r, fr, k, max_comp, friction_comp, x, meas_noise, x_ref, tau_ff,
             comp = -max_comp
         lean_des = x_ref[2 + i] + comp
         tau = tau_ff[i] - k[i, 2] * (x[2 + i] - lean_des) - k[i, 3] * (x[6 + i] - x_ref[6 + i])
-        if friction_comp:
+        if friction_comp == FRICTION_MEASURED:
             tau += friction(fr, x[4 + i]) - friction(fr, x_ref[4 + i])
+        elif friction_comp == FRICTION_MIDPOINT:
+            mid = x[4 + i] + 0.5 * (x_next[4 + i] - x_ref[4 + i])
+            tau += friction(fr, mid) - friction(fr, x_ref[4 + i])
         out[i] = tau
 
 
@@ -305,7 +334,19 @@ def closed_loop(
             meas = zero4
             if use_noise:
                 meas = noise[0, n] if one_noise else noise[b, n]
-            control_law(r, fr_ctrl, k, max_comp, friction_comp, x, meas, x_ref[n], tau_ff[n], tau)
+            control_law(
+                r,
+                fr_ctrl,
+                k,
+                max_comp,
+                friction_comp,
+                x,
+                meas,
+                x_ref[n],
+                x_ref[n + 1 if n < nt else nt],
+                tau_ff[n],
+                tau,
+            )
             for i in range(2):
                 a = abs(tau[i])
                 if a > max_tau:
@@ -373,14 +414,14 @@ def closed_loop(
 
 @njit(cache=True, error_model="numpy")
 def tracking_tick(
-    r, fr, k, max_comp, friction_comp, torque_limit, x, x_ref, tau_ff, center, shape, out
+    r, fr, k, max_comp, friction_comp, torque_limit, x, x_ref, x_next, tau_ff, center, shape, out
 ):
     """One tick of the Fig. 2 cascade on the measured state ``x`` (8,): the torque,
     saturated at ``torque_limit``, is written to ``out`` (2,); returns the value
     (p − c)ᵀ P (p − c) of the monitored outer domain (``center`` (4,), ``shape``
     (4, 4); 0 when ``center`` is empty), with p the position state of ``x`` (radius
     ``r``). The same arithmetic as one tick of :func:`closed_loop` without noise."""
-    control_law(r, fr, k, max_comp, friction_comp, x, np.zeros(4), x_ref, tau_ff, out)
+    control_law(r, fr, k, max_comp, friction_comp, x, np.zeros(4), x_ref, x_next, tau_ff, out)
     for i in range(2):
         if out[i] > torque_limit:
             out[i] = torque_limit

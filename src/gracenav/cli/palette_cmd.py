@@ -102,6 +102,16 @@ def register(sub: Any) -> None:
             "nonic"
         ),
     )
+    b.add_argument(
+        "--friction-midpoint",
+        action="store_true",
+        help=(
+            "build for a controller that feeds friction forward at the ball rate predicted "
+            "for the middle of each control period (the measured rate plus half the "
+            "reference's change over it) instead of the measured rate: no jerk pulse where "
+            "the ball's rate crosses zero; the shipped palettes use the measured rate"
+        ),
+    )
     b.set_defaults(func=run_build)
     v = s.add_parser(
         "verify",
@@ -208,7 +218,7 @@ def run_build(args: argparse.Namespace) -> int:
     )
     pal = build_palette_for(
         params=params,
-        gains=design_gains(params),
+        gains=design_gains(params, friction_midpoint=args.friction_midpoint),
         options=limits.verification_options(),
         d=args.d,
         processes=args.processes,
@@ -311,6 +321,11 @@ def run_show(args: argparse.Namespace) -> int:
         f"variants), d = {pal.d} m, key {pal.key[:12]}"
     )
     print(PaletteLimits.of(pal).describe(pal.params.torque_limit))
+    if pal.gains.friction_compensation:
+        at = "predicted mid-period" if pal.gains.friction_midpoint else "measured"
+        print(f"controller: friction fed forward at the {at} ball rate")
+    else:
+        print("controller: no friction feed-forward")
     fastest = fastest_flat_speed(pal)
     applies = "so it applies" if fastest > FAN_FLOOR else "so it changes no library"
     print(

@@ -103,14 +103,24 @@ class ControllerGains:
         Saturation of the tracking controller's lean compensation (rad).
     friction_compensation : bool
         Feed the friction model forward on the measured ball rate.
+    friction_midpoint : bool
+        Feed it forward at the rate predicted for the middle of the control period
+        instead: the measured rate plus half the reference's change over the period.
+        The torque is held over the period while the plant's friction follows the ball
+        rate within it; where the rate crosses zero the smoothed Coulomb term changes by
+        2 D_c within a few periods, and the measured rate's feed-forward, a period
+        late, leaves a pulse of the ball's acceleration there (≈ 0.3 m/s³ of jerk on
+        the smooth palette's maneuvers, docs/design/controllers.md). Off by default:
+        the shipped palettes are verified with the measured rate's.
     params : BallbotParams
         The (nominal) parameters the gains and the friction compensation use.
     weights : LQRWeights or None
         The LQR weights ``lqr`` was designed with by :func:`design_gains`; None for
         gains given by hand. Together with ``params``, ``max_lean_compensation`` and
-        ``friction_compensation`` these are the controller's *design inputs*
-        (:meth:`design_inputs`), what caches are keyed by: ``lqr`` itself is a
-        LAPACK result whose last bits vary between numpy/scipy builds.
+        ``friction_compensation`` (and ``friction_midpoint`` when set) these are the
+        controller's *design inputs* (:meth:`design_inputs`), what caches are keyed by:
+        ``lqr`` itself is a LAPACK result whose last bits vary between numpy/scipy
+        builds.
     """
 
     lqr: FloatArray
@@ -118,6 +128,7 @@ class ControllerGains:
     max_lean_compensation: float = float(np.deg2rad(5.0))
     friction_compensation: bool = True
     weights: LQRWeights | None = None
+    friction_midpoint: bool = False
 
     def __post_init__(self) -> None:
         k = np.array(self.lqr, dtype=float)
@@ -158,6 +169,8 @@ class ControllerGains:
             "lqr": self.lqr.tolist() if self.weights is None else None,
             "max_lean_compensation": self.max_lean_compensation,
             "friction_compensation": self.friction_compensation,
+            # Only when set, so that the keys of palettes built before it stand.
+            **({"friction_midpoint": True} if self.friction_midpoint else {}),
         }
 
     def relative_difference(self, other: ControllerGains) -> float:
@@ -208,6 +221,7 @@ def design_gains(
     *,
     max_lean_compensation: float = float(np.deg2rad(5.0)),
     friction_compensation: bool = True,
+    friction_midpoint: bool = False,
 ) -> ControllerGains:
     """Design the cascade gains by LQR on each plane's linearised planar model.
 
@@ -221,6 +235,9 @@ def design_gains(
         Saturation of the lean compensation (rad).
     friction_compensation : bool
         Whether the balancing controller feeds friction forward.
+    friction_midpoint : bool
+        Whether it does so at the rate predicted for the middle of the control period
+        (:attr:`ControllerGains.friction_midpoint`).
 
     Returns
     -------
@@ -242,4 +259,5 @@ def design_gains(
         max_lean_compensation=max_lean_compensation,
         friction_compensation=friction_compensation,
         weights=weights,
+        friction_midpoint=friction_midpoint,
     )

@@ -28,7 +28,10 @@ class TrackingLaw:
     Calling it with the measured state x (8,), the reference state (8,) and feed-forward
     torque (2,) (N m) of this tick, and optionally an outer domain D'(t) as centre (4,)
     and shape (4, 4) (zero-size arrays for none), returns the saturated torque (2,) and
-    the domain value (p − c)ᵀ P (p − c) of the position state p (> 1: outside).
+    the domain value (p − c)ᵀ P (p − c) of the position state p (> 1: outside). With
+    ``gains.friction_midpoint`` the reference state of the next tick (``x_next``;
+    default: this tick's, a reference at rest) predicts the ball rate the friction is
+    fed forward at.
     """
 
     def __init__(self, gains: ControllerGains) -> None:
@@ -40,14 +43,22 @@ class TrackingLaw:
         self.friction = friction_constants(p)
         self.k = gains.kernel_arrays()
         self.max_comp = float(gains.max_lean_compensation)
-        self.friction_comp = bool(gains.friction_compensation)
-        self.torque_limit = float(p.torque_limit)
         from gracenav import _kernels
 
+        self.friction_comp = _kernels.friction_mode(
+            gains.friction_compensation, gains.friction_midpoint
+        )
+        self.torque_limit = float(p.torque_limit)
         self._tick = _kernels.tracking_tick
 
     def __call__(
-        self, x: FloatArray, x_ref: FloatArray, tau_ff: FloatArray, c: FloatArray, shape: FloatArray
+        self,
+        x: FloatArray,
+        x_ref: FloatArray,
+        tau_ff: FloatArray,
+        c: FloatArray,
+        shape: FloatArray,
+        x_next: FloatArray | None = None,
     ) -> tuple[FloatArray, float]:
         """Saturated torque (2,) and the D'(t) value of ``x`` (0 without a domain)."""
         out = np.empty(2)
@@ -60,6 +71,7 @@ class TrackingLaw:
             self.torque_limit,
             x,
             x_ref,
+            x_ref if x_next is None else x_next,
             tau_ff,
             c,
             shape,

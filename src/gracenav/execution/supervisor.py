@@ -144,9 +144,10 @@ class Segment:
         """The law's torque at tick ``k`` for the measured state ``x``, and the value of
         the monitored outer domain (0 without one; > 1: outside)."""
         k = self.k
+        ref, after = self.ref_states[k], self.ref_states[min(k + 1, self.n)]
         if self.centers is not None and self.shapes is not None:
-            return law(x, self.ref_states[k], self.ref_inputs[k], self.centers[k], self.shapes[k])
-        return law(x, self.ref_states[k], self.ref_inputs[k], _NO_CENTER, _NO_SHAPE)
+            return law(x, ref, self.ref_inputs[k], self.centers[k], self.shapes[k], after)
+        return law(x, ref, self.ref_inputs[k], _NO_CENTER, _NO_SHAPE, after)
 
 
 #: How near (m, m/s, m/s²) a reference is to the goal at rest where a task may settle.

@@ -214,6 +214,7 @@ def _redesign(gains: ControllerGains) -> ControllerGains:
         gains.weights,
         max_lean_compensation=gains.max_lean_compensation,
         friction_compensation=gains.friction_compensation,
+        friction_midpoint=gains.friction_midpoint,
     )
 
 

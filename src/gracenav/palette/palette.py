@@ -188,6 +188,7 @@ class Palette:
                 ),
                 "max_lean_compensation": self.gains.max_lean_compensation,
                 "friction_compensation": self.gains.friction_compensation,
+                "friction_midpoint": self.gains.friction_midpoint,
             },
             "policies": [],
             "rejected": [[n, dataclasses.asdict(r)] for n, r in self.rejected],
@@ -282,6 +283,8 @@ class Palette:
                 max_lean_compensation=float(gp["max_lean_compensation"]),
                 friction_compensation=bool(gp["friction_compensation"]),
                 weights=None if gp["weights"] is None else LQRWeights(**gp["weights"]),
+                # Palettes written before the midpoint feed-forward existed have none.
+                friction_midpoint=bool(gp.get("friction_midpoint", False)),
             )
             opts = dict(header["options"])
             opts["scale_ladder"] = tuple(opts["scale_ladder"])

@@ -374,7 +374,7 @@ def _run_kernel(
         friction_constants(gains.params),
         gains.kernel_arrays(),
         gains.max_lean_compensation,
-        gains.friction_compensation,
+        _kernels.friction_mode(gains.friction_compensation, gains.friction_midpoint),
         plant_params.torque_limit,
     )
 
@@ -565,6 +565,7 @@ def _simulate_mujoco(
     fr = friction_constants(gains.params)
     k = gains.kernel_arrays()
     r = gains.params.ball_radius
+    friction = _kernels.friction_mode(gains.friction_compensation, gains.friction_midpoint)
     states = np.zeros((nt + 1, 8))
     inputs = np.zeros((nt + 1, 2))
     tau = np.zeros(2)
@@ -585,10 +586,11 @@ def _simulate_mujoco(
             fr,
             k,
             gains.max_lean_compensation,
-            gains.friction_compensation,
+            friction,
             x,
             meas,
             reference.states[n],
+            reference.states[min(n + 1, nt)],
             reference.inputs[n],
             tau,
         )
