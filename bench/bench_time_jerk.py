@@ -10,7 +10,11 @@ limits it takes); a gracenav palette trades them through its ball jerk bound
 - gracenav with each palette of ``--palettes`` (shipped names or files; each draws the
   pairs with its own library, as a campaign run with it would),
 - the baseline at each jerk scale of ``--jerk-scales``, with the limits of
-  ``--baseline-palette`` (default: the default palette) and that palette's draws,
+  ``--baseline-palette`` (default: the default palette) and that palette's draws and
+  controller (``--baseline-friction-midpoint``: with the friction fed forward at the
+  mid-period rate instead, :attr:`gracenav.control.ControllerGains.friction_midpoint`,
+  to compare with palettes built with ``--friction-midpoint``; the baseline verifies no
+  domain, so its palette need not be rebuilt for it),
 
 on a pool of ``--processes`` worker processes, and prints for each line the success,
 the median time to goal and the medians of the max and p95 jerk (true state,
@@ -29,6 +33,7 @@ stdout.
 
     OPENBLAS_NUM_THREADS=1 python bench/bench_time_jerk.py [--trials 200]
         [--palettes default,smooth] [--jerk-scales 0.6,0.9,1.35,1.8,2.7]
+        [--baseline-palette default] [--baseline-friction-midpoint]
         [--processes 2] [--plot plane.png] [--jsonl rows.jsonl]
 """
 
@@ -55,16 +60,28 @@ from gracenav.baseline import DecoupledOptions
 #: when not given).
 DEFAULT_SCALE = DecoupledOptions().accel_scale
 
+#: Suffix of a palette name whose controller feeds friction forward at the mid-period
+#: rate (the baseline's only: gracenav's palettes are verified with their own).
+MIDPOINT = "+midpoint"
+
 _PALETTES: dict[str, Any] = {}
 
 
 def _palette(name: str) -> Any:
-    """The palette ``name`` (``default``: :func:`gracenav.palette.load_palette`'s), loaded
-    once per worker."""
+    """The palette ``name`` (``default``: :func:`gracenav.palette.load_palette`'s; with
+    :data:`MIDPOINT` after it, that palette with the mid-period friction feed-forward in
+    its controller), loaded once per worker."""
+    import dataclasses
+
     from gracenav.palette import load_palette
 
     if name not in _PALETTES:
-        _PALETTES[name] = load_palette(None if name == "default" else name)
+        if name.endswith(MIDPOINT):
+            pal = _palette(name.removesuffix(MIDPOINT))
+            gains = dataclasses.replace(pal.gains, friction_midpoint=True)
+            _PALETTES[name] = dataclasses.replace(pal, gains=gains)
+        else:
+            _PALETTES[name] = load_palette(None if name == "default" else name)
     return _PALETTES[name]
 
 
@@ -214,6 +231,14 @@ def main() -> None:
         default="default",
         help="the palette whose limits the baseline takes (default: the default)",
     )
+    ap.add_argument(
+        "--baseline-friction-midpoint",
+        action="store_true",
+        help=(
+            "the baseline's controller feeds friction forward at the mid-period rate (as "
+            "palettes built with --friction-midpoint do)"
+        ),
+    )
     ap.add_argument("--processes", type=int, default=2, help="worker processes (default 2)")
     ap.add_argument("--plot", type=Path, default=None, help="draw the plane here (PNG)")
     ap.add_argument(
@@ -232,6 +257,13 @@ def main() -> None:
         ap.error("--jerk-scales needs at least two scales: the baseline's curve")
     if DEFAULT_SCALE not in args.jerk_scales:
         ap.error(f"--jerk-scales must include the baseline's default, {DEFAULT_SCALE:g}")
+    if any(p.endswith(MIDPOINT) for p in [*args.palettes, args.baseline_palette]):
+        ap.error(
+            f"no palette name may end with {MIDPOINT!r}: build gracenav's palette with "
+            "--friction-midpoint, give the baseline --baseline-friction-midpoint"
+        )
+    if args.baseline_friction_midpoint:
+        args.baseline_palette += MIDPOINT
     for name in {*args.palettes, args.baseline_palette}:
         try:
             _palette(name)
