@@ -77,9 +77,12 @@ def _palette(name: str) -> Any:
 
     if name not in _PALETTES:
         if name.endswith(MIDPOINT):
+            # The controller is the policies' (Palette.gains): theirs replaced; the
+            # baseline uses no policy's domain, so none needs verifying again.
             pal = _palette(name.removesuffix(MIDPOINT))
             gains = dataclasses.replace(pal.gains, friction_midpoint=True)
-            _PALETTES[name] = dataclasses.replace(pal, gains=gains)
+            policies = tuple(dataclasses.replace(q, gains=gains) for q in pal.policies)
+            _PALETTES[name] = dataclasses.replace(pal, policies=policies)
         else:
             _PALETTES[name] = load_palette(None if name == "default" else name)
     return _PALETTES[name]
