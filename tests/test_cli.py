@@ -82,6 +82,7 @@ def test_palette_show(capsys) -> None:
     assert "limits: lean 4.5° planned, 8° verified; torque 60 N m; cruise 0.5 m/s" in out
     assert "design push (planner.design_push, default 8 N s)" in out
     assert "this palette's reach 0.7" in out and "so it changes no library" in out
+    assert "controller: friction fed forward at the measured ball rate" in out
     pal = load_palette()
     checked = [p for p in pal.policies if p.still_report is not None]
     passed = sum(p.starts_from_still_band for p in checked)
@@ -95,6 +96,7 @@ def test_palette_show(capsys) -> None:
         ([], {}),
         (["--reference", "nonic"], {"reference": "nonic"}),
         (["--max-ball-jerk", "6", "--shift-max-ball-jerk", "none"], {"max_ball_jerk": 6.0}),
+        (["--friction-midpoint"], {}),
     ],
 )
 def test_palette_build_takes_the_limits_not_given_from_the_default_palette(
@@ -102,7 +104,8 @@ def test_palette_build_takes_the_limits_not_given_from_the_default_palette(
 ) -> None:
     """`gracenav palette build` without limit options asks for exactly what
     `PaletteLimits()` states (the shipped default palette's key); each option changes
-    only its own limit. The build itself is replaced: it stops the command."""
+    only its own limit, and ``--friction-midpoint`` only the controller's friction
+    feed-forward. The build itself is replaced: it stops the command."""
     import dataclasses
 
     import gracenav.palette as palette_module
@@ -123,3 +126,5 @@ def test_palette_build_takes_the_limits_not_given_from_the_default_palette(
     (kwargs,) = asked
     assert kwargs["primitive_options"] == want.primitive_options()
     assert kwargs["options"] == want.verification_options()
+    assert kwargs["gains"].friction_midpoint == ("--friction-midpoint" in argv)
+    assert kwargs["gains"].friction_compensation
