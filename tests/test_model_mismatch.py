@@ -69,7 +69,7 @@ def test_policies_that_never_advance_stop_the_task(library, monkeypatch) -> None
 
     calls = []
 
-    def stuck(x, x_ref, tau_ff, c, shape):  # type: ignore[no-untyped-def]
+    def stuck(x, x_ref, tau_ff, c, shape, x_next=None):  # type: ignore[no-untyped-def]
         calls.append(1)
         return np.zeros(2), 2.0  # every tick outside D'(t)
 
