@@ -502,3 +502,18 @@ def test_policies_that_start_at_rest_were_verified_from_the_still_band(name: str
         assert p.starts_from_still_band == p.still_report.passed
     base = [p for p in at_rest if not p.label]
     assert base and all(p.starts_from_still_band for p in base)
+
+
+def test_the_controllers_friction_feed_forward_is_kept_in_the_file() -> None:
+    """A palette whose controller feeds friction forward at the mid-period rate reads back
+    with it (and its key, a design input set); the shipped files, written before the
+    option, read as the measured rate's."""
+    shipped = load_palette("smooth")
+    assert not shipped.gains.friction_midpoint
+    gains = dataclasses.replace(shipped.gains, friction_midpoint=True)
+    policies = tuple(dataclasses.replace(p, gains=gains) for p in shipped.policies)
+    midpoint = dataclasses.replace(shipped, policies=policies)
+    back = Palette.from_bytes(midpoint.to_bytes())
+    assert back.gains.friction_midpoint and back.gains.friction_compensation
+    assert all(p.gains.friction_midpoint for p in back.policies)
+    assert back.gains.design_inputs() == gains.design_inputs() != shipped.gains.design_inputs()
