@@ -10,7 +10,7 @@ of the plan and of each run (the true ball velocity differentiated as the run su
 do, :mod:`gracenav.execution.smoothness`), the largest jerk of the difference (run minus
 plan: what the tracking adds) and the largest position error. Where the ball's rate
 relative to the body crosses zero, the smoothed Coulomb term turns by 2 D_c within a few
-control periods; the measured rate's feed-forward is held a period behind it, which
+tens of control periods; the measured rate's feed-forward is held behind it, which
 leaves a pulse of the ball's acceleration there. Then the medians and the largest of
 each column over the maneuvers.
 

@@ -108,10 +108,11 @@ class ControllerGains:
         instead: the measured rate plus half the reference's change over the period.
         The torque is held over the period while the plant's friction follows the ball
         rate within it; where the rate crosses zero the smoothed Coulomb term changes by
-        2 D_c within a few periods, and the measured rate's feed-forward, a period
-        late, leaves a pulse of the ball's acceleration there (≈ 0.3 m/s³ of jerk on
-        the smooth palette's maneuvers, docs/design/controllers.md). Off by default:
-        the shipped palettes are verified with the measured rate's.
+        2 D_c within a few tens of periods, and the measured rate's feed-forward, half
+        a period behind it all along, leaves a pulse of the ball's acceleration there
+        (≈ 0.3 m/s³ of jerk on the smooth palette's maneuvers,
+        docs/design/controllers.md). Off by default: the shipped palettes are verified
+        with the measured rate's.
     params : BallbotParams
         The (nominal) parameters the gains and the friction compensation use.
     weights : LQRWeights or None
