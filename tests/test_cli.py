@@ -35,6 +35,10 @@ def test_simulate_balance_writes_csv_and_png(tmp_path, capsys) -> None:
         # Limits refused before anything is planned: not ascending from 0.5 m/s, a
         # reference speed cap below the top speed.
         ["palette", "build", "--cruise-speeds", "0.4", "--out", "x.npz"],
+        ["palette", "build", "--cruise-speed", "0.6", "--cruise-speeds", "0.5", "--out", "x.npz"],
+        ["palette", "build", "--cruise-speed", "0", "--out", "x.npz"],
+        ["palette", "build", "--cruise-speed", "nan", "--out", "x.npz"],
+        ["palette", "build", "--cruise-speed", "1.7", "--out", "x.npz"],
         ["palette", "build", "--cruise-speeds", "1.0", "--max-speed", "0.9", "--out", "x.npz"],
         ["palette", "build", "--reference", "cubic", "--out", "x.npz"],
         # Cruise speeds at or above the robot's top speed (1.615 m/s), refused before
@@ -97,6 +101,11 @@ def test_palette_show(capsys) -> None:
         (["--reference", "nonic"], {"reference": "nonic"}),
         (["--max-ball-jerk", "6", "--shift-max-ball-jerk", "none"], {"max_ball_jerk": 6.0}),
         (["--friction-midpoint"], {}),
+        (["--cruise-speed", "0.4"], {"cruise_speeds": (0.4,)}),
+        (
+            ["--cruise-speed", "0.4", "--cruise-speeds", "0.8"],
+            {"cruise_speeds": (0.4, 0.8), "max_speed": 1.1 * 0.8},
+        ),
     ],
 )
 def test_palette_build_takes_the_limits_not_given_from_the_default_palette(

@@ -68,14 +68,25 @@ def register(sub: Any) -> None:
         ),
     )
     b.add_argument(
+        "--cruise-speed",
+        type=float,
+        default=0.5,
+        metavar="V",
+        help=(
+            "speed (m/s) of the first level's cruise trims (default 0.5): a palette whose "
+            "ball jerk bound is low keeps its tight turns, starts and stops (one or two "
+            "cells) only at a lower speed, since their jerk grows with the cube of it"
+        ),
+    )
+    b.add_argument(
         "--cruise-speeds",
         type=float,
         nargs="+",
         default=(),
         metavar="V",
         help=(
-            "further cruise speeds (m/s) above 0.5, ascending, each with its maneuvers; "
-            "the catches then reach 0.3 m/s above the top one (at least 1.2 m/s)"
+            "further cruise speeds (m/s) above --cruise-speed, ascending, each with its "
+            "maneuvers; the catches then reach 0.3 m/s above the top one (at least 1.2 m/s)"
         ),
     )
     b.add_argument(
@@ -199,13 +210,16 @@ def run_build(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     params = load_params(args) or BallbotParams()
     v_max = top_speed(params)
-    for v in args.cruise_speeds:
+    for flag, v in (
+        ("--cruise-speed", args.cruise_speed),
+        *(("--cruise-speeds", v) for v in args.cruise_speeds),
+    ):
         if not (math.isfinite(v) and 0.0 < v < v_max):
             raise ConfigError(
-                f"--cruise-speeds {v:g} m/s: a cruise speed must be below the robot's top "
+                f"{flag} {v:g} m/s: a cruise speed must be positive and below the robot's top "
                 f"speed {v_max:.3f} m/s (where friction alone takes the torque limit)"
             )
-    speeds = (0.5, *args.cruise_speeds)
+    speeds = (args.cruise_speed, *args.cruise_speeds)
     max_speed = args.max_speed if args.max_speed is not None else max(0.8, 1.1 * speeds[-1])
     limits = PaletteLimits(
         cruise_speeds=speeds,
