@@ -89,13 +89,16 @@ def _palette(name: str) -> Any:
 
 
 def _label(name: str) -> str:
-    """``name`` (a file's stem) and the ball jerk bound of its maneuvers."""
+    """``name`` (a file's stem), the ball jerk bound of its maneuvers and its cruise
+    speeds where they are not the default palette's."""
     from gracenav.palette import PaletteLimits
 
     limits = PaletteLimits.of(_palette(name))
     bound = (
         f"ball jerk ≤ {limits.max_ball_jerk:g} m/s³" if limits.reference == "limited" else "nonics"
     )
+    if limits.cruise_speeds != PaletteLimits().cruise_speeds:
+        bound += ", cruise " + ", ".join(f"{v:g}" for v in limits.cruise_speeds) + " m/s"
     return f"{Path(name).stem if ('/' in name or '.' in name) else name} ({bound})"
 
 

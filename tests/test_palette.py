@@ -359,18 +359,23 @@ def test_catches_reach_past_the_top_cruise_speed() -> None:
         catch_speeds_for((0.5, float("inf")))
 
 
-def _shipped_as_built(name: str, limits: PaletteLimits) -> Palette:
+def _shipped_as_built(
+    name: str, limits: PaletteLimits, *, friction_midpoint: bool = False
+) -> Palette:
     """The shipped palette ``name``, checked to be what `gracenav palette build` writes for
-    ``limits`` on the CMU robot with its designed gains (the key of those inputs), and
-    that every policy it keeps passed verification."""
+    ``limits`` on the CMU robot with its designed gains (the key of those inputs; with
+    ``friction_midpoint``, the gains of ``--friction-midpoint``), and that every policy
+    it keeps passed verification."""
     from gracenav.palette import palette_file
 
     params = BallbotParams()
     pal = load_palette(name)
     assert palette_file(name) == shipped_palette_path(name)
     assert (shipped_palette_path(name) == shipped_palette_path()) == (name == "gentle")
+    gains = design_gains(params, friction_midpoint=friction_midpoint)
+    assert pal.gains.friction_midpoint == friction_midpoint
     assert pal.key == palette_key(
-        params, design_gains(params), limits.verification_options(), 0.5, limits.primitive_options()
+        params, gains, limits.verification_options(), 0.5, limits.primitive_options()
     )
     assert PaletteLimits.of(pal) == limits
     kept = (*pal.policies, *pal.catches, *pal.shifts)
@@ -438,6 +443,38 @@ def test_the_smooth_palette_is_shipped_and_is_what_its_build_command_asks_for() 
     )
 
 
+def test_the_calm_palette_is_shipped_and_keeps_the_tight_maneuvers_at_its_lower_speed() -> None:
+    """`--palette calm` is the file `gracenav palette build --cruise-speed 0.4
+    --max-ball-jerk 1.15 --shift-max-ball-jerk 1.15 --friction-midpoint` writes; every
+    policy it keeps passed verification. At 0.4 m/s the one- and two-cell maneuvers
+    (starts and stops over one d, the 90° turns over (d, d), the 45° turns over (2d, d))
+    stay within 1.15 m/s³, which at 0.5 m/s none of them does within 1.25: the tight
+    maneuvers' jerk grows with the cube of the speed. Three rest-to-rest maneuvers are
+    not in it (their references within 1.15 m/s³ last longer than the palette's 4.5 s).
+    Its maneuvers' 3D plans keep the ball's jerk within the bound to 1 % (measured:
+    1.13-1.15)."""
+    from gracenav.primitives.design import _plan_maneuver
+
+    limits = PaletteLimits(cruise_speeds=(0.4,), max_ball_jerk=1.15, shift_max_ball_jerk=1.15)
+    pal = _shipped_as_built("calm", limits, friction_midpoint=True)
+    calm, nonic = _maneuvers(pal), _maneuvers(load_palette("nonic"))
+    omitted = {"rest_to_rest_2_1", "rest_to_rest_1_2", "rest_to_rest_2_2"}
+    assert set(calm) == set(nonic) - omitted
+    assert max(_ball_jerk(p) for p in calm.values()) <= 1.15 * 1.01
+    assert pal.primitive_options.cruise_speed == 0.4
+    tight = [
+        ("rest", "cruise_x", (1, 0)),
+        ("cruise_x", "rest", (1, 0)),
+        ("cruise_x", "cruise_y", (1, 1)),
+        ("cruise_x", "cruise_xy", (2, 1)),
+    ]
+    assert {f"{a}_to_{b}_{c[0]}_{c[1]}" for a, b, c in tight} <= set(calm)
+    # The same maneuvers at 0.5 m/s within 1.25 m/s³: planned, none feasible.
+    faster = PaletteLimits(max_ball_jerk=1.25, shift_max_ball_jerk=1.25).primitive_options()
+    for start, end, cells in tight:
+        assert _plan_maneuver(start, end, cells, 0.5, BallbotParams(), faster) is None
+
+
 def test_the_default_palette_is_what_the_build_command_writes_by_default() -> None:
     """The default palette (also shipped as `--palette gentle`) is the file `gracenav
     palette build` writes with its defaults, :class:`PaletteLimits` (its key is that of
@@ -460,13 +497,13 @@ def test_the_default_palette_is_what_the_build_command_writes_by_default() -> No
     assert max(_ball_jerk(p) for p in nonic.values()) > 2 * 3.0
     assert sum(p.duration for p in gentle.values()) <= sum(p.duration for p in nonic.values())
     assert all(gentle[n].duration <= 1.15 * nonic[n].duration for n in gentle)
-    assert pal.key not in {load_palette(n).key for n in ("nonic", "speed", "smooth")}
+    assert pal.key not in {load_palette(n).key for n in ("nonic", "speed", "smooth", "calm")}
 
 
 def test_shipped_palettes_by_name_and_files_of_those_names(monkeypatch, tmp_path) -> None:
     from gracenav.palette import SHIPPED_PALETTES, palette_file
 
-    assert set(SHIPPED_PALETTES) == {"default", "gentle", "nonic", "speed", "smooth"}
+    assert set(SHIPPED_PALETTES) == {"default", "gentle", "nonic", "speed", "smooth", "calm"}
     assert load_palette("default").key == load_palette().key
     monkeypatch.setenv(PALETTE_ENV, "speed")
     assert load_palette().key == load_palette("speed").key
@@ -476,11 +513,11 @@ def test_shipped_palettes_by_name_and_files_of_those_names(monkeypatch, tmp_path
     assert palette_file("./speed") == Path("speed") != shipped_palette_path("speed")
     with pytest.raises(CacheError, match="cannot read palette file speed"):
         load_palette(Path("speed"))
-    with pytest.raises(CacheError, match="shipped: default, gentle, nonic, speed, smooth"):
+    with pytest.raises(CacheError, match="shipped: default, gentle, nonic, speed, smooth, calm"):
         shipped_palette_path("fast")
 
 
-@pytest.mark.parametrize("name", ["default", "nonic", "speed", "smooth"])
+@pytest.mark.parametrize("name", ["default", "nonic", "speed", "smooth", "calm"])
 def test_policies_that_start_at_rest_were_verified_from_the_still_band(name: str) -> None:
     """Every kept policy that starts at rest, other than the rest trims and the capture
     regulators, carries its verification from the corners of the still band at both

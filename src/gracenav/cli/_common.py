@@ -71,8 +71,9 @@ def add_palette_argument(parser: argparse.ArgumentParser, flag: str = "--palette
             "motion policy palette to use: a file (e.g. one written by `gracenav palette "
             "build --out FILE`) or a shipped palette by name: 'default' (0.5 m/s), "
             "'speed' (cruise levels 0.5, 1.0 and 1.2 m/s), 'smooth' (0.5 m/s, the "
-            "ball's jerk within 2 m/s³) or 'gentle' (0.5 m/s, the ball's jerk within "
-            "3 m/s³); a file of such a name is "
+            "ball's jerk within 2 m/s³), 'calm' (0.4 m/s, the ball's jerk within "
+            "1.15 m/s³) or 'gentle' (0.5 m/s, the ball's jerk within 3 m/s³); a file "
+            "of such a name is "
             "./NAME (default: $GRACENAV_PALETTE, else the default palette)"
         ),
     )

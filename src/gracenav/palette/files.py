@@ -51,7 +51,11 @@ PALETTE_ENV = "GRACENAV_PALETTE"
 #: 1.0 and 1.2 m/s, limited references within 6 m/s³; built with ``gracenav palette
 #: build --cruise-speeds 1.0 1.2 --max-ball-jerk 6 --shift-max-ball-jerk 12``); and
 #: ``smooth`` (limited references and shifts within 2 m/s³; built with ``gracenav
-#: palette build --max-ball-jerk 2 --shift-max-ball-jerk 2``). ``--palette NAME`` and
+#: palette build --max-ball-jerk 2 --shift-max-ball-jerk 2``); and ``calm`` (cruise at
+#: 0.4 m/s, limited references and shifts within 1.15 m/s³, the controller feeding
+#: friction forward at the mid-period rate; built with ``gracenav palette build
+#: --cruise-speed 0.4 --max-ball-jerk 1.15 --shift-max-ball-jerk 1.15
+#: --friction-midpoint``). ``--palette NAME`` and
 #: ``$GRACENAV_PALETTE=NAME`` select one (:func:`palette_file`); a file of that name is
 #: ``./NAME``.
 SHIPPED_PALETTES: dict[str, str] = {
@@ -60,6 +64,7 @@ SHIPPED_PALETTES: dict[str, str] = {
     "nonic": "palette-nonic.npz",
     "speed": "palette-speed.npz",
     "smooth": "palette-smooth.npz",
+    "calm": "palette-calm.npz",
 }
 
 
