@@ -39,6 +39,10 @@ def test_simulate_balance_writes_csv_and_png(tmp_path, capsys) -> None:
         ["palette", "build", "--cruise-speed", "0", "--out", "x.npz"],
         ["palette", "build", "--cruise-speed", "nan", "--out", "x.npz"],
         ["palette", "build", "--cruise-speed", "1.7", "--out", "x.npz"],
+        # Trims that would outlast the longest maneuver (4.5 s), refused before any is
+        # sampled: 1e-6 m/s made trims of 7e5 s.
+        ["palette", "build", "--cruise-speed", "1e-6", "--out", "x.npz"],
+        ["palette", "build", "--d", "1e9", "--out", "x.npz"],
         ["palette", "build", "--cruise-speeds", "1.0", "--max-speed", "0.9", "--out", "x.npz"],
         ["palette", "build", "--reference", "cubic", "--out", "x.npz"],
         # Cruise speeds at or above the robot's top speed (1.615 m/s), refused before

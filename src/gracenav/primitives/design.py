@@ -9,6 +9,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
+from gracenav.errors import ConfigError
 from gracenav.model.rotation import quarter_turn
 from gracenav.params import BallbotParams
 from gracenav.primitives.limited import (
@@ -270,7 +271,23 @@ def _plan_limited(
     return None
 
 
+def _check_trim_durations(d: float, options: PrimitiveSetOptions) -> None:
+    """Refuse cruise trims that would outlast the longest maneuver (a diagonal trim
+    lasts √2 m d / v), before anything is sampled: a cruise speed near zero, or a huge
+    d, would otherwise make trims, and the policies sampled from them at the control
+    rate, of any length."""
+    for level, speed in enumerate((options.cruise_speed, *options.cruise_speeds), start=1):
+        lasts = math.sqrt(2.0) * _level_cells(level, options) * d / speed
+        if lasts > options.max_duration:
+            raise ConfigError(
+                f"a cruise trim at {speed:g} m/s over d = {d:g} m would last {lasts:.3g} s, "
+                f"longer than the longest maneuver ({options.max_duration:g} s): raise the "
+                "cruise speed or lower d"
+            )
+
+
 def _build(d: float, params: BallbotParams, options: PrimitiveSetOptions) -> PrimitiveSet:
+    _check_trim_durations(d, options)
     prims: list[MotionPrimitive] = list(_trims(d, params, options))
     omitted: list[str] = []
     for start, end, cells in _CATALOGUE:
