@@ -399,7 +399,7 @@ def test_the_closed_loop_is_the_control_law_written_again(midpoint: bool) -> Non
 
 
 def test_the_mid_period_friction_removes_the_pulse_where_the_ball_rate_crosses_zero() -> None:
-    """Friction fed forward at the measured rate is a period late where the smoothed
+    """Friction fed forward at the measured rate is half a period behind where the smoothed
     Coulomb term turns (2 D_c within a few tens of periods): the ball's jerk (true minus planned,
     differentiated as the run summaries do) pulses there, measured 0.30 m/s³, and the
     position lags by up to 0.27 mm. At the rate predicted for the middle of the period
